@@ -1,0 +1,9 @@
+"""Benchmarks: each module ``app.bench.<name>`` has ``add_arguments(parser)`` and
+``run(args) -> list[record]``; ``scanlight bench NAME`` prints the table and writes JSON."""
+
+BENCHES = {
+    "bsh": "app.bench.bsh",
+    "classic": "app.bench.classic",
+    "table3": "app.bench.table3",
+    "expand": "app.bench.expand",
+}

@@ -1,0 +1,133 @@
+"""Pinhole cameras: the JSON camera format and the matrices every renderer uses.
+
+Conventions: right-handed, y up, metres; OpenGL clip space; the camera looks down its -z axis.
+Matrices are float64 numpy arrays in row-major math form (``clip = P @ V @ world``); upload them
+transposed (``.T``) or with ``.astype('f4').tobytes(order='F')`` for GLSL's column-major mat4.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import ScanlightError
+
+
+@dataclass
+class Camera:
+    position: np.ndarray
+    look_at: np.ndarray
+    up: np.ndarray = None
+    fov_y_deg: float = 45.0
+    width: int = 128
+    height: int = 128
+
+    def __post_init__(self):
+        self.position = np.asarray(self.position, dtype=np.float64).reshape(3)
+        self.look_at = np.asarray(self.look_at, dtype=np.float64).reshape(3)
+        self.up = np.asarray((0, 1, 0) if self.up is None else self.up, dtype=np.float64).reshape(3)
+        self.width, self.height = int(self.width), int(self.height)
+
+    @property
+    def aspect(self) -> float:
+        return self.width / self.height
+
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(right, true_up, forward) unit vectors in world space."""
+        f = self.look_at - self.position
+        f = f / np.linalg.norm(f)
+        r = np.cross(f, self.up)
+        if np.linalg.norm(r) < 1e-9:  # looking along 'up': pick any perpendicular
+            r = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 0.0, 1.0])
+        r = r / np.linalg.norm(r)
+        return r, np.cross(r, f), f
+
+    def view(self) -> np.ndarray:
+        r, u, f = self.basis()
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = r, u, -f
+        m[:3, 3] = -m[:3, :3] @ self.position
+        return m
+
+    def projection(self, near: float, far: float) -> np.ndarray:
+        t = 1.0 / np.tan(np.radians(self.fov_y_deg) / 2)
+        m = np.zeros((4, 4))
+        m[0, 0], m[1, 1] = t / self.aspect, t
+        m[2, 2] = (far + near) / (near - far)
+        m[2, 3] = 2 * far * near / (near - far)
+        m[3, 2] = -1.0
+        return m
+
+    def pixel_rays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit world-space ray directions through pixel centres, (H, W, 3), row 0 at the top."""
+        r, u, f = self.basis()
+        t = np.tan(np.radians(self.fov_y_deg) / 2)
+        xs = ((np.arange(self.width) + 0.5) / self.width * 2 - 1) * t * self.aspect
+        ys = (1 - (np.arange(self.height) + 0.5) / self.height * 2) * t
+        d = f + xs[None, :, None] * r + ys[:, None, None] * u
+        return self.position, d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    def to_dict(self) -> dict:
+        return {"position": self.position.tolist(), "look_at": self.look_at.tolist(),
+                "up": self.up.tolist(), "fov_y_deg": float(self.fov_y_deg),
+                "width": self.width, "height": self.height}
+
+
+def _vec3(d: dict, key: str, source, default=None) -> np.ndarray:
+    val = d.get(key, default)
+    if val is None:
+        raise ScanlightError(source, f"camera is missing {key!r}")
+    try:
+        arr = np.asarray(val, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape != (3,) or not np.isfinite(arr).all():
+        raise ScanlightError(source, f"camera {key!r} must be 3 finite numbers, got {val!r}")
+    return arr
+
+
+def camera_from_dict(d: dict, source=None) -> Camera:
+    if not isinstance(d, dict):
+        raise ScanlightError(source, "a camera must be a JSON object")
+    pos, at = _vec3(d, "position", source), _vec3(d, "look_at", source)
+    up = _vec3(d, "up", source, [0, 1, 0])
+    if np.linalg.norm(at - pos) < 1e-9:
+        raise ScanlightError(source, "camera 'look_at' equals 'position'")
+    fov = d.get("fov_y_deg", 45.0)
+    if not isinstance(fov, (int, float)) or not 0.1 <= fov <= 179:
+        raise ScanlightError(source, f"camera 'fov_y_deg' must be in [0.1, 179], got {fov!r}")
+    w, h = d.get("width", 128), d.get("height", 128)
+    for key, v in (("width", w), ("height", h)):
+        if not isinstance(v, int) or not 1 <= v <= 16384:
+            raise ScanlightError(source, f"camera {key!r} must be an integer in [1, 16384], got {v!r}")
+    return Camera(pos, at, up, float(fov), w, h)
+
+
+def load_camera(path) -> Camera:
+    p = Path(path)
+    if not p.is_file():
+        raise ScanlightError(p, "camera file not found")
+    try:
+        d = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ScanlightError(p, f"not valid JSON ({exc})") from None
+    return camera_from_dict(d, str(p))
+
+
+# The six faces of an axis-aligned cube map, in OpenGL order (+X, -X, +Y, -Y, +Z, -Z) with the
+# OpenGL cube-map 'up' vectors, so face images can be uploaded to a cube texture as they are.
+CUBE_FACES = (
+    ("+x", (1, 0, 0), (0, -1, 0)), ("-x", (-1, 0, 0), (0, -1, 0)),
+    ("+y", (0, 1, 0), (0, 0, 1)), ("-y", (0, -1, 0), (0, 0, -1)),
+    ("+z", (0, 0, 1), (0, -1, 0)), ("-z", (0, 0, -1), (0, -1, 0)),
+)
+
+
+def cube_cameras(position, face_size: int) -> list[Camera]:
+    """Six 90-degree cameras at ``position``, one per cube-map face."""
+    pos = np.asarray(position, dtype=np.float64)
+    return [Camera(pos, pos + np.asarray(d, float), up, 90.0, face_size, face_size)
+            for _, d, up in CUBE_FACES]

@@ -1,0 +1,140 @@
+"""Disney Principled material (Burley 2012): the parameter table, declared once.
+
+The table drives the BRDF panel sliders, the material JSON format and the docs. Defaults follow
+Burley's BRDF explorer; ``base_color`` is linear RGB.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import ScanlightError
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    default: float
+    tooltip: str
+    lo: float = 0.0
+    hi: float = 1.0
+
+
+# Scalar parameters in the order the shaders pack them (see shaders/lib/principled.glsl).
+SCALAR_PARAMS: tuple[Param, ...] = (
+    Param("subsurface", 0.0, "Blends the diffuse lobe towards Hanrahan-Krueger subsurface flattening."),
+    Param("metallic", 0.0, "0 = dielectric, 1 = metal (specular tinted by base colour, no diffuse)."),
+    Param("specular", 0.5, "Dielectric specular amount; 0.5 = index of refraction 1.5 (F0 = 4%)."),
+    Param("specular_tint", 0.0, "Tints the dielectric specular towards the base colour hue."),
+    Param("roughness", 0.5, "Microfacet roughness (alpha = roughness^2)."),
+    Param("anisotropic", 0.0, "Stretches the specular highlight along the surface tangent."),
+    Param("sheen", 0.0, "Extra grazing-angle retro-reflection, for cloth."),
+    Param("sheen_tint", 0.5, "Tints the sheen towards the base colour hue."),
+    Param("clearcoat", 0.0, "A second, fixed-IOR (1.5) specular lobe, as on car paint."),
+    Param("clearcoat_gloss", 1.0, "Clearcoat glossiness: 0 = satin, 1 = gloss."),
+)
+SCALAR_NAMES = tuple(p.name for p in SCALAR_PARAMS)
+DEFAULT_BASE_COLOR = (0.82, 0.67, 0.16)
+ALL_NAMES = ("base_color",) + SCALAR_NAMES
+
+
+@dataclass
+class Material:
+    """One Disney Principled material, optionally with textures (linear base colour etc.)."""
+
+    base_color: tuple[float, float, float] = DEFAULT_BASE_COLOR
+    subsurface: float = 0.0
+    metallic: float = 0.0
+    specular: float = 0.5
+    specular_tint: float = 0.0
+    roughness: float = 0.5
+    anisotropic: float = 0.0
+    sheen: float = 0.0
+    sheen_tint: float = 0.5
+    clearcoat: float = 0.0
+    clearcoat_gloss: float = 1.0
+    name: str = "material"
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # Optional textures as float32 arrays (H, W, C): base colour (linear RGB[A]),
+    # metallic-roughness (glTF: B = metallic, G = roughness), tangent-space normal map.
+    base_color_texture: np.ndarray | None = field(default=None, repr=False)
+    metallic_roughness_texture: np.ndarray | None = field(default=None, repr=False)
+    normal_texture: np.ndarray | None = field(default=None, repr=False)
+
+    def scalars(self) -> np.ndarray:
+        return np.array([getattr(self, n) for n in SCALAR_NAMES], dtype=np.float32)
+
+    def to_dict(self) -> dict:
+        d = {"base_color": [float(c) for c in self.base_color]}
+        d.update({n: float(getattr(self, n)) for n in SCALAR_NAMES})
+        return d
+
+    def updated(self, values: dict) -> "Material":
+        """A copy with ``values`` applied (validated, clamped to each parameter's range)."""
+        new = Material(**{f.name: getattr(self, f.name) for f in fields(self)})
+        for key, val in values.items():
+            set_param(new, key, val)
+        return new
+
+
+PRESETS: dict[str, dict] = {
+    "plastic": {"base_color": [0.6, 0.05, 0.05], "roughness": 0.3, "specular": 0.5},
+    "rubber": {"base_color": [0.05, 0.05, 0.05], "roughness": 0.9, "specular": 0.3},
+    "brushed metal": {"base_color": [0.9, 0.9, 0.9], "metallic": 1.0, "roughness": 0.35,
+                      "anisotropic": 0.8},
+    "gold": {"base_color": [1.0, 0.71, 0.29], "metallic": 1.0, "roughness": 0.2},
+    "car paint": {"base_color": [0.05, 0.12, 0.5], "roughness": 0.4, "clearcoat": 1.0,
+                  "clearcoat_gloss": 0.95},
+    "fabric": {"base_color": [0.5, 0.2, 0.3], "roughness": 0.95, "sheen": 1.0, "sheen_tint": 0.5,
+               "specular": 0.2},
+    "white diffuse": {"base_color": [0.8, 0.8, 0.8], "roughness": 1.0, "specular": 0.0},
+}
+
+
+def set_param(mat: Material, key: str, val, source: str | None = None) -> None:
+    if key == "base_color":
+        try:
+            rgb = [float(v) for v in val]
+        except TypeError:
+            rgb = []
+        if len(rgb) != 3 or not all(np.isfinite(rgb)):
+            raise ScanlightError(source, f"material 'base_color' must be 3 finite numbers, got {val!r}")
+        mat.base_color = tuple(float(np.clip(v, 0.0, 1.0)) for v in rgb)
+        return
+    spec = next((p for p in SCALAR_PARAMS if p.name == key), None)
+    if spec is None:
+        raise ScanlightError(source, f"unknown material parameter {key!r} "
+                                     f"(known: {', '.join(ALL_NAMES)})")
+    try:
+        v = float(val)
+    except (TypeError, ValueError):
+        raise ScanlightError(source, f"material {key!r} must be a number, got {val!r}") from None
+    if not np.isfinite(v):
+        raise ScanlightError(source, f"material {key!r} must be finite, got {val!r}")
+    setattr(mat, key, float(np.clip(v, spec.lo, spec.hi)))
+
+
+def material_from_dict(d: dict, source: str | None = None) -> Material:
+    if not isinstance(d, dict):
+        raise ScanlightError(source, "a material must be a JSON object")
+    mat = Material(name=str(d.get("name", "material")))
+    for key, val in d.items():
+        if key == "name":
+            continue
+        set_param(mat, key, val, source)
+    return mat
+
+
+def load_material(path) -> Material:
+    p = Path(path)
+    if not p.is_file():
+        raise ScanlightError(p, "material file not found")
+    try:
+        d = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ScanlightError(p, f"not valid JSON ({exc})") from None
+    return material_from_dict(d, str(p))

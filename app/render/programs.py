@@ -48,8 +48,14 @@ def _read_include(name: str) -> str:
     return path.read_text()
 
 
+# Each file gets its own block of line numbers (file k starts at line k * LINE_STRIDE + 1):
+# Mesa does not reliably report the source-string number of '#line N S', but it does report
+# the line, so the line alone tells which file an error is in.
+LINE_STRIDE = 100000
+
+
 class _Source:
-    """Expands includes, keeping a table source-string number -> file for error messages."""
+    """Expands includes, keeping a table file index -> file name for error messages."""
 
     def __init__(self):
         self.files: list[str] = []
@@ -59,13 +65,13 @@ class _Source:
             raise ScanlightError(name, "recursive #include: " + " -> ".join(stack + (name,)))
         idx = len(self.files)
         self.files.append(name)
-        out = [f"#line 1 {idx}"]
+        out = [f"#line {idx * LINE_STRIDE + 1}"]
         for lineno, line in enumerate(text.splitlines(), start=1):
             m = _INCLUDE.match(line)
             if m:
                 inc = m.group(1)
                 out.append(self.expand(inc, _read_include(inc), stack + (name,)))
-                out.append(f"#line {lineno + 1} {idx}")
+                out.append(f"#line {idx * LINE_STRIDE + lineno + 1}")
             elif line.strip().startswith("#version"):
                 out.append("")  # the loader writes the version line itself
             else:
@@ -74,7 +80,8 @@ class _Source:
 
     def describe(self, message: str) -> str:
         def repl(m):
-            src, line, col = (int(g) for g in m.groups())
+            _, line, col = (int(g) for g in m.groups())
+            src, line = divmod(line, LINE_STRIDE)
             fname = self.files[src] if src < len(self.files) else f"source {src}"
             return f"{fname}:{line}:{col}"
         return _ERROR_LOC.sub(repl, message)

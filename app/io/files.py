@@ -46,6 +46,9 @@ def atomic_output(path):
     os.close(fd)
     try:
         yield Path(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; outputs are ordinary user files
         os.replace(tmp, p)
     except BaseException:
         with contextlib.suppress(OSError):

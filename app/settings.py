@@ -1,0 +1,459 @@
+"""The viewer's plain settings model and its session file; no UI and no GL imports here.
+
+``SETTINGS`` is the parameter table, declared once: key, type, default, range, unit, tooltip. The
+UI derives every slider, combo and checkbox from it (app/ui/widgets.py), ``markdown_table()``
+writes the docs, and the session JSON stores the values under the same keys.
+
+Editing follows the Mitsuba pattern: whoever edits calls ``set``; the model records *which keys
+changed*; the engine reads ``take_changes()`` once per frame and decides what to redo (a BRDF
+slider only re-gathers the asset, an exposure change only re-tone-maps, a new cloud rebuilds the
+hierarchy). Non-settings parts of the session (files, capture cameras, asset transform,
+materials, the view camera) report their changes through the same change set under the keys in
+``DOCUMENT_KEYS``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from app.camera import Camera, camera_from_dict
+from app.errors import ScanlightError
+from app.material import Material, material_from_dict
+
+SESSION_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One user-facing parameter. ``kind`` is float | int | bool | choice."""
+
+    key: str
+    kind: str
+    default: Any
+    tooltip: str
+    lo: float | None = None
+    hi: float | None = None
+    unit: str = ""
+    choices: tuple[str, ...] = ()
+    label: str = ""
+    log: bool = False  # logarithmic slider (ranges spanning decades)
+
+    @property
+    def group(self) -> str:
+        return self.key.split(".", 1)[0]
+
+    @property
+    def title(self) -> str:
+        return self.label or self.key.split(".", 1)[1].replace("_", " ")
+
+    def coerce(self, value, source=None):
+        """The value validated and clamped to the range; ScanlightError names the key otherwise."""
+        where = f"setting {self.key!r}"
+        if self.kind == "bool":
+            if isinstance(value, bool):
+                return value
+            if isinstance(value, (int, float)) and value in (0, 1):
+                return bool(value)
+            raise ScanlightError(source, f"{where} must be true or false, got {value!r}")
+        if self.kind == "choice":
+            if isinstance(value, str) and value in self.choices:
+                return value
+            raise ScanlightError(source, f"{where} must be one of {', '.join(self.choices)}, "
+                                         f"got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+            raise ScanlightError(source, f"{where} must be a number, got {value!r}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise ScanlightError(source, f"{where} must be finite, got {value!r}")
+        v = min(max(v, self.lo), self.hi)
+        return int(round(v)) if self.kind == "int" else v
+
+
+MODES = ("classic", "mipmapped", "hybrid", "envmap")
+CLOUD_DISPLAYS = ("ldr", "hdr", "difference")
+TONEMAPPERS = ("pbr-neutral", "clamp")
+HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
+
+SETTINGS: tuple[Setting, ...] = (
+    # -- display --------------------------------------------------------------------------------
+    Setting("view.exposure", "float", 0.0, "Exposure before the tone mapper: radiance x 2^EV.",
+            -10.0, 10.0, "EV"),
+    Setting("view.tonemap", "choice", "pbr-neutral",
+            "Tone mapper: Khronos PBR Neutral keeps base colours recognisable and rolls off "
+            "highlights; 'clamp' shows linear values clipped at 1.", choices=TONEMAPPERS),
+    Setting("view.cloud", "choice", "ldr",
+            "Which room colours to show: the LDR scan, the HDR-expanded cloud, or the difference "
+            "map log2(Y_hdr / Y_ldr) in false colour (paper Fig. 1).", choices=CLOUD_DISPLAYS,
+            label="cloud colours"),
+    Setting("view.fov_y", "float", 50.0, "Vertical field of view of the viewport camera.",
+            10.0, 120.0, "deg", label="field of view"),
+    Setting("view.splat_scale", "float", 2.0, "Radius multiplier of the room's point splats "
+            "(1 = twice the median point spacing; 2 closes the gaps of a random scan up close).",
+            0.25, 4.0, "x", label="splat size"),
+    Setting("view.show_cameras", "bool", True, "Draw the capture cameras as gizmos."),
+    Setting("view.show_gizmo", "bool", True, "Show the asset transform gizmo in the viewport."),
+    Setting("view.fly_speed", "float", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s",
+            log=True),
+    # -- PBGI -----------------------------------------------------------------------------------
+    Setting("pbgi.mode", "choice", "classic",
+            "Classic: one hierarchy walk per pixel. Mipmapped: walks shared through the G-buffer "
+            "pyramid. Hybrid: shared walk, finished per pixel. Environment map: one cube map "
+            "from the asset centre.", choices=MODES),
+    Setting("pbgi.microbuffer", "int", 24, "Micro-buffer resolution M (M x M micro-pixels "
+            "per receiver).", 8, 32, "px"),
+    Setting("pbgi.render_scale", "float", 1.0, "Final GI resolution relative to the viewport "
+            "(refined in tiles when the view is idle).", 0.125, 1.0, "x"),
+    Setting("pbgi.preview_scale", "float", 0.25, "GI resolution while the camera or a slider "
+            "moves; upsampled with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x"),
+    Setting("pbgi.omega_tr_factor", "float", 32.0, "Hybrid: a node is refined per pixel once "
+            "its solid angle drops below this factor times the micro-pixel's.", 1.0, 256.0,
+            "x", label="Omega_tr factor", log=True),
+    Setting("pbgi.memory_budget_mb", "float", 1024.0, "GPU memory the mipmapped/hybrid pair "
+            "lists may use before they fall back to smaller batches.", 64.0, 8192.0, "MB",
+            label="memory budget", log=True),
+    Setting("pbgi.frame_budget_ms", "float", 80.0, "GI work per frame while refining: tiles are "
+            "sized so one frame stays near this time.", 10.0, 1000.0, "ms", label="frame budget",
+            log=True),
+    # -- HDR expansion --------------------------------------------------------------------------
+    Setting("hdr.method", "choice", "pmatch-rgb",
+            "Expansion strategy: generalised PatchMatch transferring colour or luminance from the "
+            "photo, or inverse tone mapping (Landis / Banterle; '-pc' = per point).",
+            choices=HDR_METHODS),
+    Setting("hdr.face_size", "int", 512, "Cube-map face resolution of each capture.", 64, 2048,
+            "px"),
+    Setting("hdr.threshold_ldr", "float", 0.9, "t_l: only points whose LDR luminance exceeds "
+            "this are expanded.", 0.5, 1.0, "", label="t_l (overexposed)"),
+    Setting("hdr.threshold_ssd", "float", 1.0, "t_h: PatchMatch matches with a patch SSD above "
+            "this are rejected.", 0.01, 10.0, "", label="t_h (match SSD)", log=True),
+    Setting("hdr.neighbours", "int", 16, "k of the k-nearest-neighbour graph of the Poisson "
+            "colour editing.", 4, 64, "", label="Poisson k"),
+    Setting("hdr.bins", "int", 128, "Histogram bins of the exposure search.", 16, 1024, ""),
+    Setting("hdr.iterations", "int", 50, "Maximum bisection steps of the exposure search.", 1,
+            200, ""),
+)
+BY_KEY: dict[str, Setting] = {s.key: s for s in SETTINGS}
+GROUPS = ("view", "pbgi", "hdr")
+
+# Change keys of the session parts that are not table settings.
+DOCUMENT_KEYS = ("files.cloud", "files.hdr_cloud", "files.asset", "files.photo",
+                 "asset.transform", "materials", "capture_cameras", "camera")
+
+
+class Settings:
+    """Current values of ``SETTINGS`` plus the set of keys changed since the engine last looked."""
+
+    def __init__(self, values: dict | None = None, source=None):
+        self._values = {s.key: s.default for s in SETTINGS}
+        self._changed: set[str] = set()
+        if values:
+            self.update(values, source)
+
+    def __getitem__(self, key: str):
+        return self._values[key]
+
+    def get(self, key: str):
+        return self._values[key]
+
+    def set(self, key: str, value, source=None) -> bool:
+        """Validate and store; True (and the key recorded as changed) when the value differs."""
+        spec = BY_KEY.get(key)
+        if spec is None:
+            raise ScanlightError(source, f"unknown setting {key!r}")
+        v = spec.coerce(value, source)
+        if self._values[key] == v:
+            return False
+        self._values[key] = v
+        self._changed.add(key)
+        return True
+
+    def update(self, values: dict, source=None) -> None:
+        for key, val in values.items():
+            self.set(key, val, source)
+
+    def mark(self, key: str) -> None:
+        """Record a change of a non-table part of the session (see DOCUMENT_KEYS)."""
+        self._changed.add(key)
+
+    def take_changes(self) -> frozenset[str]:
+        """The keys changed since the last call (the engine calls this once per frame)."""
+        out, self._changed = frozenset(self._changed), set()
+        return out
+
+    def pending(self) -> frozenset[str]:
+        return frozenset(self._changed)
+
+    def reset(self, key: str) -> None:
+        self.set(key, BY_KEY[key].default)
+
+    def to_dict(self) -> dict:
+        return dict(self._values)
+
+
+def markdown_table() -> str:
+    """The settings table for the README / docs, generated from ``SETTINGS``."""
+    rows = ["| key | type | default | range | unit | what it does |", "|---|---|---|---|---|---|"]
+    for s in SETTINGS:
+        rng = " / ".join(s.choices) if s.kind == "choice" else (
+            "" if s.kind == "bool" else f"{s.lo:g} .. {s.hi:g}")
+        rows.append(f"| `{s.key}` | {s.kind} | {s.default} | {rng} | {s.unit} | {s.tooltip} |")
+    return "\n".join(rows)
+
+
+# ---------------------------------------------------------------------------------------------
+# The session: everything the user set up, saved as JSON.
+
+@dataclass
+class CaptureCamera:
+    """A capture position for HDR expansion (its cube map is axis aligned, paper Section 4.1)."""
+
+    name: str
+    position: tuple[float, float, float]
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "position": [float(v) for v in self.position]}
+
+
+@dataclass
+class AssetTransform:
+    """The object JSON's placement (see README): rotate (degrees, x then y then z), scale, move."""
+
+    translate: tuple[float, float, float] = (0.0, 0.6, 0.0)
+    rotate_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    scale: float = 0.8
+
+    def to_dict(self) -> dict:
+        return {"translate": [float(v) for v in self.translate],
+                "rotate_deg": [float(v) for v in self.rotate_deg], "scale": float(self.scale)}
+
+    def matrix(self) -> np.ndarray:
+        """4x4 object -> world: translate @ scale @ R, R = Rz @ Ry @ Rx (app.io.formats)."""
+        from app.io.formats import rotation_xyz
+        m = np.eye(4)
+        m[:3, :3] = rotation_xyz(self.rotate_deg) * float(self.scale)
+        m[:3, 3] = self.translate
+        return m
+
+    @staticmethod
+    def from_matrix(m: np.ndarray) -> "AssetTransform":
+        """Inverse of ``matrix`` for a uniform scale (what the gizmo hands back)."""
+        m = np.asarray(m, dtype=np.float64)
+        lin = m[:3, :3]
+        scale = float(np.cbrt(abs(np.linalg.det(lin)))) or 1e-6
+        r = lin / scale
+        ry = np.arcsin(np.clip(-r[2, 0], -1.0, 1.0))
+        if abs(np.cos(ry)) > 1e-6:
+            rx, rz = np.arctan2(r[2, 1], r[2, 2]), np.arctan2(r[1, 0], r[0, 0])
+        else:  # gimbal lock: put everything into x
+            rx, rz = np.arctan2(-r[1, 2], r[1, 1]), 0.0
+        return AssetTransform(tuple(float(v) for v in m[:3, 3]),
+                              tuple(float(v) for v in np.degrees([rx, ry, rz])), scale)
+
+
+@dataclass
+class Session:
+    """Files, capture cameras, asset transform, materials, view camera and settings.
+
+    ``cloud``/``photo`` are paths or "demo" (the built-in scene); ``asset`` is a path or one of
+    the built-in objects ("sphere", "knot"); ``hdr_cloud`` is the expansion result, if any.
+    ``materials`` None means "the asset's own". Paths are stored relative to the session file.
+    """
+
+    cloud: str = "demo"
+    photo: str | None = "demo"
+    hdr_cloud: str | None = None
+    asset: str = "sphere"
+    transform: AssetTransform = field(default_factory=AssetTransform)
+    capture_cameras: list[CaptureCamera] = field(default_factory=list)
+    materials: list[Material] | None = None
+    camera: Camera | None = None
+    settings: Settings = field(default_factory=Settings)
+    path: Path | None = None
+
+    # -- edits that report their change key ------------------------------------------------------
+    def set_file(self, which: str, value: str | None) -> None:
+        setattr(self, which, value)
+        self.settings.mark(f"files.{which}")
+
+    def set_transform(self, transform: AssetTransform) -> None:
+        if transform != self.transform:
+            self.transform = transform
+            self.settings.mark("asset.transform")
+
+    def set_material(self, index: int, values: dict) -> None:
+        mats = self.materials or []
+        mats[index] = mats[index].updated(values)
+        self.settings.mark("materials")
+
+    def set_materials(self, materials: list[Material] | None) -> None:
+        self.materials = materials
+        self.settings.mark("materials")
+
+    def set_capture_cameras(self, cams: list[CaptureCamera]) -> None:
+        self.capture_cameras = cams
+        self.settings.mark("capture_cameras")
+
+    @property
+    def mode(self) -> str:
+        return self.settings["pbgi.mode"]
+
+    # -- JSON ------------------------------------------------------------------------------------
+    def to_dict(self, base: Path | None = None) -> dict:
+        values = self.settings.to_dict()
+        mode = values.pop("pbgi.mode")
+        return {
+            "scanlight_session": SESSION_VERSION,
+            "files": {"cloud": _rel(self.cloud, base), "photo": _rel(self.photo, base),
+                      "hdr_cloud": _rel(self.hdr_cloud, base), "asset": _rel(self.asset, base)},
+            "capture_cameras": [c.to_dict() for c in self.capture_cameras],
+            "asset_transform": self.transform.to_dict(),
+            "materials": None if self.materials is None else [
+                dict(m.to_dict(), name=m.name) for m in self.materials],
+            "mode": mode,
+            "camera": None if self.camera is None else self.camera.to_dict(),
+            "settings": values,
+        }
+
+    def save(self, path, relative: bool = True) -> Path:
+        """Write atomically (paths relative to the file unless ``relative`` is False) and
+        remember ``path`` as this session's file."""
+        from app.io.files import atomic_output
+        p = Path(path)
+        text = json.dumps(self.to_dict(p.resolve().parent if relative else None), indent=1)
+        with atomic_output(p) as tmp:
+            tmp.write_text(text)
+        self.path = p
+        return p
+
+
+BUILTIN_ASSETS = ("sphere", "knot")
+
+
+def _rel(value: str | None, base: Path | None) -> str | None:
+    if value is None or value == "demo" or value in BUILTIN_ASSETS:
+        return value
+    if base is None:
+        return str(Path(value).resolve())
+    try:
+        return os.path.relpath(Path(value).resolve(), base)
+    except ValueError:  # another drive (Windows)
+        return str(value)
+
+
+def _abs(value, base: Path, key: str, source) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value:
+        raise ScanlightError(source, f"session 'files.{key}' must be a path string, got {value!r}")
+    if value == "demo" or value in BUILTIN_ASSETS:
+        return value
+    p = Path(value)
+    return str(p if p.is_absolute() else (base / p))
+
+
+def _vec3(v, what: str, source) -> tuple[float, float, float]:
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.shape != (3,) or not np.isfinite(a).all():
+        raise ScanlightError(source, f"session {what} must be 3 finite numbers, got {v!r}")
+    return tuple(float(x) for x in a)
+
+
+def session_from_dict(d: dict, base: Path, source=None) -> Session:
+    if not isinstance(d, dict) or "scanlight_session" not in d:
+        raise ScanlightError(source, "not a Scanlight session (no 'scanlight_session' key)")
+    if d["scanlight_session"] != SESSION_VERSION:
+        raise ScanlightError(source, f"session version {d['scanlight_session']!r} is not "
+                                     f"supported (this build reads version {SESSION_VERSION})")
+    files = d.get("files") or {}
+    if not isinstance(files, dict):
+        raise ScanlightError(source, "session 'files' must be an object")
+    s = Session(cloud=_abs(files.get("cloud", "demo"), base, "cloud", source) or "demo",
+                photo=_abs(files.get("photo"), base, "photo", source),
+                hdr_cloud=_abs(files.get("hdr_cloud"), base, "hdr_cloud", source),
+                asset=_abs(files.get("asset", "sphere"), base, "asset", source) or "sphere")
+    cams = d.get("capture_cameras") or []
+    if not isinstance(cams, list):
+        raise ScanlightError(source, "session 'capture_cameras' must be a list")
+    for i, c in enumerate(cams):
+        if not isinstance(c, dict):
+            raise ScanlightError(source, f"capture camera {i} must be an object")
+        s.capture_cameras.append(CaptureCamera(str(c.get("name", f"capture {i + 1}")),
+                                               _vec3(c.get("position"), f"capture camera {i} "
+                                                     "'position'", source)))
+    t = d.get("asset_transform") or {}
+    if not isinstance(t, dict):
+        raise ScanlightError(source, "session 'asset_transform' must be an object")
+    scale = t.get("scale", 0.8)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (
+            math.isfinite(scale) and scale > 0):
+        raise ScanlightError(source, f"session asset scale must be a positive number, "
+                                     f"got {scale!r}")
+    s.transform = AssetTransform(
+        _vec3(t.get("translate", (0, 0.6, 0)), "asset 'translate'", source),
+        _vec3(t.get("rotate_deg", (0, 0, 0)), "asset 'rotate_deg'", source), float(scale))
+    mats = d.get("materials")
+    if mats is not None:
+        if not isinstance(mats, list):
+            raise ScanlightError(source, "session 'materials' must be a list or null")
+        s.materials = [material_from_dict(m, source) for m in mats]
+    if d.get("camera") is not None:
+        s.camera = camera_from_dict(d["camera"], source)
+    values = d.get("settings") or {}
+    if not isinstance(values, dict):
+        raise ScanlightError(source, "session 'settings' must be an object")
+    s.settings = Settings(values, source)
+    if "mode" in d:
+        s.settings.set("pbgi.mode", d["mode"], source)
+    s.settings.take_changes()  # a fresh session has nothing "changed"
+    return s
+
+
+def load_session(path) -> Session:
+    p = Path(path)
+    if not p.is_file():
+        raise ScanlightError(p, "session file not found")
+    try:
+        d = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ScanlightError(p, f"not valid JSON ({exc})") from None
+    s = session_from_dict(d, p.resolve().parent, str(p))
+    s.path = p
+    return s
+
+
+# ---------------------------------------------------------------------------------------------
+# "Last session", kept in the user's config folder.
+
+def config_dir() -> Path:
+    root = os.environ.get("SCANLIGHT_CONFIG") or os.path.join(
+        os.environ.get("XDG_CONFIG_HOME", os.path.expanduser("~/.config")), "scanlight")
+    return Path(root)
+
+
+def last_session_path() -> Path:
+    return config_dir() / "last_session.json"
+
+
+def save_last_session(session: Session) -> Path:
+    """A copy of the session with absolute paths, for ``scanlight view --last``."""
+    p = last_session_path()
+    keep = session.path
+    session.save(p, relative=False)
+    session.path = keep
+    return p
+
+
+def load_last_session() -> Session:
+    p = last_session_path()
+    if not p.is_file():
+        raise ScanlightError(p, "no last session yet (one is saved when the viewer closes)")
+    return load_session(p)

@@ -1,0 +1,106 @@
+"""``scanlight view``: open the session (or the demo), then run the window or the offscreen loop.
+
+Offscreen (``--offscreen``) runs the same ViewerEngine on the headless EGL context: the frames are
+drawn exactly as in the window (same passes, same size), without the imgui panels. A screenshot
+is always taken once the progressive refinement has finished, so batch images do not depend on
+how fast the machine is. A UI script (env SCANLIGHT_UI_SCRIPT=file.py with
+``on_frame(viewer, frame_index)``) can drive either mode; tests use it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import sys
+
+from app.errors import ScanlightError, UsageError
+from app.settings import Session, load_last_session, load_session
+
+log = logging.getLogger(__name__)
+
+
+def parse_size(text) -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text or ""))
+    if not m:
+        raise UsageError(None, f"--size must look like 1280x800, got {text!r}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (16 <= w <= 16384 and 16 <= h <= 16384):
+        raise UsageError(None, f"--size must be between 16x16 and 16384x16384, got {text!r}")
+    return w, h
+
+
+def open_session(args) -> Session:
+    from app.ui.engine import default_session
+    if getattr(args, "session", None) and getattr(args, "last", False):
+        raise UsageError(None, "give either --session or --last, not both")
+    if getattr(args, "session", None):
+        return load_session(args.session)
+    if getattr(args, "last", False):
+        return load_last_session()
+    return default_session()
+
+
+class OffscreenViewer:
+    """The window's frame loop without a window (same engine, same drawing)."""
+
+    def __init__(self, session: Session, size, script=None):
+        from app.render.context import get_context
+        from app.ui.engine import ViewerEngine
+        self.ctx = get_context()
+        self.session = session
+        self.engine = ViewerEngine(self.ctx, session, size=size)
+        self.script = script
+        self.frame_index = 0
+        self.quit_requested = False
+
+    def quit(self) -> None:
+        self.quit_requested = True
+
+    def read_window(self):
+        return self.engine.view.read_display()
+
+    def save_window_png(self, path) -> None:
+        from app.io.images import write_png
+        write_png(path, self.read_window())
+
+    def run(self, frames: int, screenshot: str | None = None) -> int:
+        frames = max(int(frames), 1)
+        while self.frame_index < frames and not self.quit_requested:
+            self.engine.frame()
+            if self.script is not None:
+                self.script(self, self.frame_index)
+            self.frame_index += 1
+        if screenshot:
+            files = self.engine.screenshot(screenshot)
+            print("screenshot: " + ", ".join(files))
+        for m in self.engine.messages:
+            if m.level != "info":
+                print(f"scanlight view: {m.level}: {m.text}", file=sys.stderr)
+        return 0
+
+
+def run_viewer(args) -> int:
+    size = parse_size(getattr(args, "size", "1280x800"))
+    session = open_session(args)
+    script = None
+    from app.ui.window import SCRIPT_ENV
+    script_path = os.environ.get(SCRIPT_ENV)
+    if script_path:
+        from app.ui.window import load_script
+        script = load_script(script_path)
+    frames = int(getattr(args, "frames", 0) or 0)
+    if frames < 0:
+        raise UsageError(None, f"--frames must be >= 0, got {frames}")
+    shot = getattr(args, "screenshot", None)
+    if getattr(args, "offscreen", False):
+        return OffscreenViewer(session, size, script).run(frames, shot)
+    try:
+        from app.ui.window import ViewerWindow
+        viewer = ViewerWindow(session, size, script)
+    except ScanlightError:
+        raise
+    except Exception as exc:  # no usable display / GL 4.3: say so in one line
+        raise ScanlightError(None, f"cannot open the viewer window ({type(exc).__name__}: {exc}); "
+                                   "use --offscreen, or run under xvfb-run") from None
+    return viewer.run(frames, shot)

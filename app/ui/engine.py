@@ -1,0 +1,468 @@
+"""The viewer's engine: reads the session, owns the scene, the renderers and the refinement, and
+draws one frame. No imgui here: the window (app/ui/app.py) and the offscreen runner both drive
+this class, so batch screenshots are what the window shows.
+
+Each frame ``frame()`` takes the session's change set and decides what to redo:
+
+    files.cloud, files.hdr_cloud   reload the scan; new splats; Relighter.set_cloud
+    view.cloud                     new splat colours; relight with that cloud (cheap set_cloud)
+    files.asset                    load the mesh; new G-buffer geometry; Relighter.set_asset
+    asset.transform                re-place the mesh (no reload); set_asset
+    materials, pbgi.*              re-gather only (uniforms / parameters)
+    view.exposure, view.tonemap    composite only
+    camera (any move), view.fov_y  redraw room and G-buffer, re-gather
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.camera import Camera
+from app.errors import ScanlightError
+from app.settings import Session
+from app.ui.navigation import ViewNavigator
+from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect
+from app.ui.scene import Asset, Cloud, copy_materials, load_cloud_files
+from app.ui.viewport import ViewportRenderer
+
+log = logging.getLogger(__name__)
+
+RELIGHTER_ENV = "SCANLIGHT_RELIGHTER"   # "module:Class", a test seam; default the PBGI renderer
+DEFAULT_RELIGHTER = "app.pbgi.renderer:Relighter"
+GI_KEYS_PREFIX = ("pbgi.",)
+NO_GI_KEYS = {"pbgi.frame_budget_ms"}
+
+
+@dataclass
+class Message:
+    text: str
+    level: str = "error"   # error | warning | info
+    time: float = field(default_factory=time.time)
+
+
+def load_relighter():
+    """(Relighter class, RenderParams class, None) or (None, None, reason) when not available."""
+    spec = os.environ.get(RELIGHTER_ENV) or DEFAULT_RELIGHTER
+    module, _, name = spec.partition(":")
+    try:
+        mod = importlib.import_module(module)
+        return getattr(mod, name), mod.RenderParams, None
+    except Exception as exc:  # missing module, or a broken one: the viewer still runs
+        return None, None, f"{type(exc).__name__}: {exc}"
+
+
+def text_image(text: str, scale: int = 2) -> np.ndarray:
+    """White text with a dark outline as an RGBA8 image (row 0 at the top)."""
+    from PIL import Image, ImageDraw, ImageFont
+    font = ImageFont.load_default()
+    probe = ImageDraw.Draw(Image.new("L", (1, 1)))
+    x0, y0, x1, y1 = probe.textbbox((0, 0), text, font=font)
+    w, h = x1 - x0 + 8, y1 - y0 + 8
+    img = Image.new("RGBA", (w, h), (0, 0, 0, 170))
+    ImageDraw.Draw(img).text((4 - x0, 4 - y0), text, fill=(255, 255, 255, 255), font=font)
+    a = np.asarray(img)
+    return np.repeat(np.repeat(a, scale, axis=0), scale, axis=1) if scale > 1 else a
+
+
+class ViewerEngine:
+    def __init__(self, ctx, session: Session, size=(960, 600)):
+        self.ctx = ctx
+        self.session = session
+        self.size = tuple(int(v) for v in size)
+        self.messages: list[Message] = []
+        self.view = ViewportRenderer(ctx)
+        self.view.resize(*self.size)
+        self.cloud: Cloud | None = None
+        self.photo: np.ndarray | None = None
+        self.asset: Asset | None = None
+        self.mesh = None
+        self.relighter = None
+        self.render_params_cls = None
+        self.relighter_error: str | None = None
+        self._lit_cloud = None
+        self.gi = ProgressiveGI(self._render_gi)
+        self.gi_stats: dict = {}
+        self.gi_failed = False
+        self.frame_ms: list[float] = []
+        self.timings: dict = {}
+        self._last_camera_key = None
+        self._room_dirty = True
+        self._composite_dirty = True
+        self._asset_dirty = True
+        self._gi_dirty = True
+        self.nav = ViewNavigator(fov_y_deg=session.settings["view.fov_y"])
+        self._init_camera()
+        self._load_relighter()
+        self.load_cloud()
+        self.load_asset()
+
+    # -- messages --------------------------------------------------------------------------------
+    def error(self, text: str, level: str = "error") -> None:
+        log.log(logging.ERROR if level == "error" else logging.INFO, "%s", text)
+        if not self.messages or self.messages[-1].text != text:
+            self.messages.append(Message(text, level))
+        del self.messages[:-20]
+
+    def guard(self, what: str, fn, *args, **kwargs):
+        """Run ``fn``; a failure becomes a message in the window, never a crash."""
+        try:
+            return fn(*args, **kwargs)
+        except ScanlightError as err:
+            self.error(f"{what}: {err}")
+        except Exception as exc:  # a bug: say what failed, keep the viewer alive
+            log.exception("%s failed", what)
+            self.error(f"{what} failed: {type(exc).__name__}: {exc}")
+        return None
+
+    # -- loading ---------------------------------------------------------------------------------
+    def _init_camera(self) -> None:
+        s = self.session
+        if s.camera is not None:
+            self.nav = ViewNavigator.from_camera(s.camera)
+            s.settings.set("view.fov_y", s.camera.fov_y_deg)
+        else:
+            from app.demo.room import default_views
+            self.nav = ViewNavigator.from_camera(default_views()["whole"])
+            self.nav.fov_y_deg = s.settings["view.fov_y"]
+
+    def _load_relighter(self) -> None:
+        cls, params, err = load_relighter()
+        if cls is None:
+            self.relighter_error = err
+            log.info("relighting renderer unavailable: %s", err)
+            return
+        try:
+            self.relighter = cls(ctx=self.ctx)
+            self.render_params_cls = params
+        except Exception as exc:
+            self.relighter_error = f"{type(exc).__name__}: {exc}"
+            self.error(f"relighting renderer failed to start: {self.relighter_error}")
+
+    @property
+    def renderer_available(self) -> bool:
+        return self.relighter is not None
+
+    def load_cloud(self) -> None:
+        loaded = self.guard("opening the point cloud", load_cloud_files, self.session)
+        if loaded is None:
+            if self.cloud is None:  # nothing to show yet: an empty room
+                from app.cloud import PointCloud
+                empty = PointCloud(np.zeros((1, 3)), np.array([[0, 1, 0]]), np.zeros((1, 3)))
+                self.cloud = Cloud(empty)
+                self.view.set_cloud(empty)
+            return
+        self.cloud, photo = loaded
+        if photo is not None or self.session.photo is None:
+            self.photo = photo
+        self.view.set_cloud(self.cloud.ldr)
+        if self.cloud.hdr is not None and self.session.settings["view.cloud"] == "ldr":
+            self.session.settings.set("view.cloud", "hdr")
+        self._apply_colors()
+
+    def set_hdr_cloud(self, hdr, path: str | None = None) -> None:
+        """The expansion result: switch the display and the lighting to HDR."""
+        self.cloud.hdr = hdr
+        self.session.hdr_cloud = path
+        self.session.settings.set("view.cloud", "hdr")
+        self._apply_colors()
+
+    def _apply_colors(self) -> None:
+        which = self.session.settings["view.cloud"]
+        self.view.set_colors(self.cloud.colors(which))
+        self._room_dirty = True
+        lit = self.cloud.lighting(which)
+        if self.relighter is not None and lit is not self._lit_cloud:
+            self._lit_cloud = lit
+            t0 = time.perf_counter()
+            self.guard("building the light hierarchy", self.relighter.set_cloud, lit)
+            self.timings["set_cloud_ms"] = (time.perf_counter() - t0) * 1e3
+        self._gi_dirty = True
+
+    def load_asset(self) -> None:
+        asset = self.guard("opening the asset", Asset, self.session.asset)
+        if asset is None:
+            return
+        self.asset = asset
+        mats = self.session.materials
+        if mats is None or len(mats) != len(asset.materials):
+            if mats is not None:
+                self.error(f"the session has {len(mats)} materials but the asset has "
+                           f"{len(asset.materials)}: using the asset's", "warning")
+            self.session.materials = copy_materials(asset.materials)
+        self.place_asset()
+
+    def place_asset(self) -> None:
+        if self.asset is None:
+            return
+        mesh = self.guard("placing the asset", self.asset.placed, self.session.transform)
+        if mesh is None:
+            return
+        self.mesh = mesh
+        self.view.set_asset(mesh)
+        if self.relighter is not None:
+            self.guard("uploading the asset", self.relighter.set_asset, mesh)
+        self._gi_dirty = True
+
+    def reset_materials(self) -> None:
+        if self.asset is not None:
+            self.session.set_materials(copy_materials(self.asset.materials))
+
+    # -- bounds / framing ------------------------------------------------------------------------
+    def asset_sphere(self) -> tuple[np.ndarray, float]:
+        if self.mesh is None:
+            return np.asarray(self.session.transform.translate, float), 0.5
+        lo, hi = (np.asarray(v, float) for v in self.mesh.bounds())
+        return (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+
+    def frame_asset(self) -> None:
+        c, r = self.asset_sphere()
+        self.nav.frame(c, r, self.size[0] / self.size[1])
+
+    def camera(self) -> Camera:
+        return self.nav.camera(*self.size)
+
+    # -- the frame -------------------------------------------------------------------------------
+    def resize(self, width: int, height: int) -> None:
+        if (width, height) != self.size and width > 0 and height > 0:
+            self.size = (int(width), int(height))
+            self.view.resize(*self.size)
+            self._room_dirty = self._gi_dirty = True
+
+    def apply_changes(self) -> frozenset:
+        changes = self.session.settings.take_changes()
+        if not changes:
+            return changes
+        s = self.session.settings
+        if changes & {"files.cloud", "files.hdr_cloud", "files.photo"}:
+            if changes & {"files.cloud", "files.hdr_cloud"}:
+                self._lit_cloud = None
+                self.load_cloud()
+            elif self.session.photo:
+                photo = self.guard("opening the photo", self._load_photo)
+                if photo is not None:
+                    self.photo = photo
+        if "view.cloud" in changes:
+            self._apply_colors()
+        if "files.asset" in changes:
+            self.load_asset()
+        elif "asset.transform" in changes:
+            self.place_asset()
+        if "view.fov_y" in changes:
+            self.nav.fov_y_deg = s["view.fov_y"]
+        if "view.splat_scale" in changes:
+            self._room_dirty = True
+        if "camera" in changes and self.session.camera is not None:
+            self.nav = ViewNavigator.from_camera(self.session.camera)
+        if "materials" in changes or any(k.startswith(GI_KEYS_PREFIX) and k not in NO_GI_KEYS
+                                         for k in changes):
+            self._gi_dirty = True
+        if any(not (k == "materials" or k.startswith("pbgi.") or k == "capture_cameras")
+               for k in changes):
+            self._composite_dirty = True
+        return changes
+
+    def _load_photo(self):
+        from app.ui.scene import load_photo
+        return load_photo(self.session.photo)
+
+    def reset_gl_state(self) -> None:
+        """Back to GL defaults (no blending, no depth test, no scissor): the imgui renderer leaves
+        blending on, which would silently mask the G-buffer writes of the passes that follow."""
+        import moderngl
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.ctx.scissor = None
+
+    def frame(self, interacting: bool = False, budget_ms: float | None = None) -> dict:
+        """Advance one frame; returns what happened (for stats and tests)."""
+        t0 = time.perf_counter()
+        self.reset_gl_state()
+        self.apply_changes()
+        cam = self.camera()
+        key = (tuple(np.round(cam.position, 9)), tuple(np.round(cam.look_at, 9)),
+               cam.fov_y_deg, cam.width, cam.height)
+        if key != self._last_camera_key:
+            self._last_camera_key = key
+            self._room_dirty = self._gi_dirty = True
+        info = {"room": False, "gi": False}
+        if self._room_dirty:
+            t = time.perf_counter()
+            self.view.draw_room(cam, self.session.settings["view.splat_scale"])
+            self.view.draw_gbuffer(cam)
+            self.timings["room_ms"] = (time.perf_counter() - t) * 1e3
+            self._room_dirty = False
+            self._composite_dirty = info["room"] = True
+        if self._gi_dirty:
+            self._restart_gi(cam)
+        budget = self.session.settings["pbgi.frame_budget_ms"] if budget_ms is None else budget_ms
+        if self.renderer_available and not self.gi_failed and self.gi.refining:
+            self.reset_gl_state()
+            t = time.perf_counter()
+            if self.gi.step(budget, allow_tiles=not interacting):
+                info["gi"] = True
+            self.timings["gi_frame_ms"] = (time.perf_counter() - t) * 1e3
+        self._upload_gi()
+        if self._composite_dirty or self._asset_dirty:
+            self._composite(cam, room=self._composite_dirty)
+        ms = (time.perf_counter() - t0) * 1e3
+        self.frame_ms.append(ms)
+        del self.frame_ms[:-240]
+        info["ms"] = ms
+        return info
+
+    def _restart_gi(self, cam: Camera) -> None:
+        self._gi_dirty = False
+        self.gi_failed = False
+        if self.mesh is None:
+            return
+        layer = scaled_camera(cam, self.session.settings["pbgi.render_scale"])
+        rect = screen_rect(layer, *self.mesh.bounds())
+        s = self.session.settings
+        self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"])
+        self._asset_dirty = True
+
+    def _upload_gi(self) -> None:
+        if self.gi.full is None:
+            return
+        preview, reset, rects = self.gi.take_dirty()
+        if preview:
+            self.view.upload_preview(self.gi.preview)
+            self._asset_dirty = True
+        if reset:
+            self.view.upload_full(self.gi.full)
+            self._asset_dirty = True
+        elif rects:
+            self.view.upload_full(self.gi.full, rects)
+            self._asset_dirty = True
+
+    def _label(self, cam: Camera):
+        if self.renderer_available or self.mesh is None:
+            self.view.set_label(None)
+            return None
+        if self.view.label_size == (0, 0):
+            self.view.set_label(text_image("renderer unavailable"))
+        rect = screen_rect(cam, *self.mesh.bounds())
+        if rect is None:
+            return None
+        x, y, w, h = rect
+        lw, lh = self.view.label_size
+        cx, cy = x + w // 2, y + h // 2
+        return (cx - lw // 2, cam.height - (cy + lh // 2), lw, lh)
+
+    def _composite(self, cam: Camera, room: bool = True) -> None:
+        s = self.session.settings
+        label = self._label(cam)
+        rect = None if self.mesh is None else screen_rect(cam, *self.mesh.bounds())
+        self.view.composite(cam, s["view.exposure"], s["view.tonemap"],
+                            raw_room=s["view.cloud"] == "difference" and self.cloud.hdr is not None,
+                            unavailable=not self.renderer_available, asset_rect=rect,
+                            label_rect=label, room=room)
+        self._composite_dirty = self._asset_dirty = False
+
+    def _render_gi(self, camera: Camera, tile) -> np.ndarray:
+        s = self.session.settings
+        params = self.render_params_cls(mode=s["pbgi.mode"], microbuffer=s["pbgi.microbuffer"],
+                                        omega_tr_factor=s["pbgi.omega_tr_factor"],
+                                        memory_budget_mb=s["pbgi.memory_budget_mb"])
+        try:
+            res = self.relighter.render(camera, self.session.materials, params, tile=tile)
+        except Exception as exc:
+            self.gi_failed = True
+            if isinstance(exc, ScanlightError):
+                self.error(f"relighting: {exc}")
+            else:
+                log.exception("relighting failed")
+                self.error(f"relighting failed: {type(exc).__name__}: {exc}")
+            x, y, w, h = tile
+            return np.zeros((h, w, 4), np.float32)
+        img = np.asarray(res.image, np.float32)
+        x, y, w, h = tile
+        if img.shape[:2] != (h, w) and img.shape[:2] == (camera.height, camera.width):
+            img = img[y:y + h, x:x + w]
+        img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
+        self.gi_stats = dict(res.stats or {})
+        if self.gi_stats.get("completed") is False:
+            self.error("relighting: a render pass did not complete (GPU loop budget); the image "
+                       "may be missing light", "warning")
+        return img
+
+    # -- output ----------------------------------------------------------------------------------
+    def finish_refinement(self) -> None:
+        """Run the refinement to the end and composite (screenshots, offscreen)."""
+        cam = self.camera()
+        self.reset_gl_state()
+        if self.renderer_available and not self.gi_failed:
+            self.gi.finish()
+        self._upload_gi()
+        self._composite(cam)
+
+    def screenshot(self, path) -> list[str]:
+        """PNG of the display image plus EXR of the linear composite beside it (same stem)."""
+        from pathlib import Path
+
+        from app.io.exr import write_exr
+        from app.io.images import write_png
+        self.finish_refinement()
+        p = Path(path)
+        if p.suffix.lower() != ".png":
+            p = p.with_suffix(".png")
+        write_png(p, self.view.read_display())
+        lin = self.view.read_linear()[..., :3]
+        exr = p.with_suffix(".exr")
+        write_exr(exr, np.nan_to_num(lin, nan=0.0, posinf=0.0, neginf=0.0))
+        return [str(p), str(exr)]
+
+    def release(self) -> None:
+        """Free the GL resources (a new session replaces this engine)."""
+        if self.relighter is not None and hasattr(self.relighter, "release"):
+            self.guard("releasing the renderer", self.relighter.release)
+        self.view.release()
+
+    def stats(self) -> dict:
+        ft = np.asarray(self.frame_ms[-60:]) if self.frame_ms else np.zeros(1)
+        out = {"frame_ms": float(ft.mean()), "frame_ms_max": float(ft.max()),
+               "refining": self.gi.refining, "progress": self.gi.progress,
+               "preview_scale": self.gi.effective_scale}
+        out.update({k: v for k, v in self.timings.items()})
+        out.update({f"gi_{k}": v for k, v in self.gi_stats.items()})
+        return out
+
+    def capture_preview(self, position, face: int = 64) -> np.ndarray:
+        """The room seen from ``position`` in six directions as a cross (uint8 sRGB, top row
+        first): middle row -X, -Z, +X, +Z (turning right), +Y above and -Y below -Z. Upright
+        views for the eye; the expansion's own cube faces follow OpenGL's face conventions."""
+        from app.render.tonemap import tonemap_to_srgb8
+        pos = np.asarray(position, float)
+        views = {(1, 0): ((-1, 0, 0), (0, 1, 0)), (1, 1): ((0, 0, -1), (0, 1, 0)),
+                 (1, 2): ((1, 0, 0), (0, 1, 0)), (1, 3): ((0, 0, 1), (0, 1, 0)),
+                 (0, 1): ((0, 1, 0), (0, 0, 1)), (2, 1): ((0, -1, 0), (0, 0, -1))}
+        out = np.zeros((3 * face, 4 * face, 3), np.uint8)
+        ev = self.session.settings["view.exposure"]
+        for (r, c), (d, up) in views.items():
+            img = self.view.splat.render(Camera(pos, pos + np.asarray(d, float), up, 90.0,
+                                                face, face))
+            out[r * face:(r + 1) * face, c * face:(c + 1) * face] = tonemap_to_srgb8(
+                img[..., :3], ev)
+        return out
+
+def default_session() -> Session:
+    """The demo scene: the LDR scan of the demo room, the default sphere, one capture camera."""
+    from app.demo.room import CAPTURE_POSITIONS, default_object, default_views
+    from app.settings import AssetTransform, CaptureCamera
+    obj = default_object("sphere")
+    s = Session(cloud="demo", photo="demo", asset="sphere",
+                transform=AssetTransform(tuple(obj["translate"]), (0.0, 0.0, 0.0),
+                                         float(obj["scale"])),
+                capture_cameras=[CaptureCamera(f"capture {i + 1}", tuple(p))
+                                 for i, p in enumerate(CAPTURE_POSITIONS)],
+                camera=default_views()["whole"])
+    s.settings.take_changes()
+    return s
+
+
+__all__ = ["ViewerEngine", "default_session", "load_relighter"]

@@ -1,0 +1,87 @@
+"""Capture cameras: add at the viewpoint, select, rename, move to, delete, cube-map preview."""
+
+from __future__ import annotations
+
+import numpy as np
+from imgui_bundle import imgui
+
+from app.settings import CaptureCamera
+from app.ui.widgets import tooltip
+
+PREVIEW_FACE = 64
+
+
+def _texture(ui, rgb: np.ndarray):
+    """An imgui-registered RGBA8 texture from (H, W, 3) uint8 (top row first)."""
+    h, w = rgb.shape[:2]
+    rgba = np.concatenate([rgb, np.full((h, w, 1), 255, np.uint8)], axis=-1)
+    tex = ui.ctx.texture((w, h), 4, np.ascontiguousarray(rgba).tobytes())
+    ui.imgui.register_texture(tex)
+    return tex
+
+
+def release(ui, tex) -> None:
+    if tex is not None:
+        ui.imgui.remove_texture(tex)
+        tex.release()
+
+
+def draw(ui) -> None:
+    s, e = ui.session, ui.engine
+    cams = s.capture_cameras
+    if imgui.button("add capture camera here"):
+        n = len(cams) + 1
+        names = {c.name for c in cams}
+        while f"capture {n}" in names:
+            n += 1
+        s.set_capture_cameras(cams + [CaptureCamera(f"capture {n}", tuple(e.nav.position))])
+        ui.selected_capture = len(s.capture_cameras) - 1
+        cams = s.capture_cameras
+    tooltip("The HDR expansion renders a cube map of the scan from each capture position.")
+    if not cams:
+        imgui.text_disabled("no capture cameras")
+        return
+    imgui.begin_child("captures", (0, min(24 * len(cams) + 8, 120)), imgui.ChildFlags_.borders)
+    for i, c in enumerate(cams):
+        if imgui.selectable(f"{c.name}##{i}", i == ui.selected_capture)[0]:
+            ui.selected_capture = i
+            release(ui, ui.capture_texture)
+            ui.capture_texture = None
+    imgui.end_child()
+    i = ui.selected_capture
+    if not 0 <= i < len(cams):
+        return
+    c = cams[i]
+    changed, name = imgui.input_text("name", c.name)
+    if changed and name.strip():
+        cams[i] = CaptureCamera(name, c.position)
+        s.set_capture_cameras(list(cams))
+    changed, pos = imgui.drag_float3("position (m)", list(c.position), 0.01, 0, 0, "%.3f")
+    if changed:
+        cams[i] = CaptureCamera(cams[i].name, tuple(pos))
+        s.set_capture_cameras(list(cams))
+        release(ui, ui.capture_texture)
+        ui.capture_texture = None
+    if imgui.button("move to"):
+        centre, _ = e.asset_sphere()
+        target = centre if np.linalg.norm(centre - np.asarray(c.position)) > 1e-6 else \
+            np.asarray(c.position) + (0, 0, -1)
+        e.nav.look_from(c.position, target)
+    imgui.same_line()
+    if imgui.button("delete"):
+        s.set_capture_cameras(cams[:i] + cams[i + 1:])
+        ui.selected_capture = min(i, len(s.capture_cameras) - 1)
+        release(ui, ui.capture_texture)
+        ui.capture_texture = None
+        return
+    imgui.same_line()
+    if imgui.button("preview cube map"):
+        img = e.guard("rendering the cube-map preview", e.capture_preview, c.position, PREVIEW_FACE)
+        if img is not None:
+            release(ui, ui.capture_texture)
+            ui.capture_texture = _texture(ui, img)
+    if ui.capture_texture is not None:
+        tw, th = ui.capture_texture.size
+        avail = imgui.get_content_region_avail().x
+        imgui.image(ui.capture_texture.glo, (avail, avail * th / tw))
+        tooltip("-X, -Z, +X, +Z around the middle row; up (+Y) above and down (-Y) below -Z")

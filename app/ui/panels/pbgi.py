@@ -1,0 +1,28 @@
+"""PBGI: mode, micro-buffer, render scales, Hybrid's Omega_tr factor, live stats of the gather."""
+
+from __future__ import annotations
+
+from imgui_bundle import imgui
+
+from app.ui import widgets
+
+KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.render_scale", "pbgi.preview_scale",
+        "pbgi.omega_tr_factor", "pbgi.memory_budget_mb", "pbgi.frame_budget_ms")
+
+
+def draw(ui) -> None:
+    e = ui.engine
+    widgets.group(ui.session.settings, KEYS)
+    if not e.renderer_available:
+        imgui.text_colored((1, 0.6, 0.5, 1), "renderer unavailable")
+        imgui.text_wrapped(e.relighter_error or "")
+        return
+    st = e.gi_stats
+    if st:
+        imgui.separator_text("last gather")
+        imgui.text(f"mode {st.get('mode', '?')}   {st.get('ms', 0):.1f} ms per pass")
+        imgui.text(f"nodes visited {int(st.get('nodes_visited', 0) or 0):,}")
+        imgui.text(f"extra memory {float(st.get('mb', 0) or 0):.1f} MB   "
+                   f"M = {st.get('microbuffer', '?')}")
+        imgui.text(f"last tile {st.get('width', '?')} x {st.get('height', '?')} px"
+                   + ("" if st.get("completed", True) else "   INCOMPLETE"))

@@ -1,0 +1,244 @@
+"""Progressive refinement of the relit asset, so the UI never waits for a whole GI frame.
+
+The GI render runs on the main thread (it needs the GL context) and on a CPU rasteriser one
+full-resolution frame can take seconds. So the layer is built in two steps, each inside a per-frame
+time budget:
+
+1. *Preview* (every time the view, a material or a PBGI setting changes): the gather runs on a
+   camera of ``preview_scale`` (default 1/4) times the resolution, only over the asset's screen
+   rectangle. The compositor (shaders/viewer_composite.glsl) upsamples it with joint bilateral
+   weights guided by a full-resolution G-buffer of the asset (normal and depth, rasterised every
+   frame), as Ritschel et al. 2009 Section 2.4 do, so the silhouette is sharp at once and colours
+   do not bleed across depth edges. One render call cannot be interrupted, so the scale is
+   chosen *before* rendering from the measured cost per pixel (about two frame budgets, never
+   below 1/16; 1/8 for the very first preview) and adapted after it: slow previews lower it,
+   fast ones climb back to the setting.
+2. *Tiles* (only once nothing has changed for a frame): the layer is re-rendered at full layer
+   resolution in strips of square cells, centre rows first. The cell side (8..64 px) and the
+   strip length come from the measured cost per pixel so each frame stays near the budget (at
+   least one cell per frame, so refinement always advances). Cells not yet rendered keep
+   showing the upsampled preview. ``progress`` tells the UI how far it got.
+
+The render function is injected (``render(camera, tile) -> (h, w, 4) float32``), so tests drive
+this with an analytic stand-in and the viewer with the real PBGI renderer.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from app.camera import Camera
+
+CELL = 32                 # tile granularity before the cost per pixel is known
+MIN_CELL, MAX_CELL = 8, 64
+MIN_PREVIEW_SCALE = 1 / 16
+FIRST_PREVIEW_SCALE = 1 / 8  # before any cost per pixel is known
+
+
+def scaled_camera(cam: Camera, scale: float) -> Camera:
+    return replace(cam, width=max(1, int(math.ceil(cam.width * scale))),
+                   height=max(1, int(math.ceil(cam.height * scale))))
+
+
+def screen_rect(cam: Camera, lo, hi, pad: int = 2) -> tuple[int, int, int, int] | None:
+    """Pixel rectangle (x0, y0, w, h), row 0 at the top, covering the box lo..hi as seen by
+    ``cam``; the whole image when the box reaches behind the eye; None when it is off screen."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    eye = (cam.view() @ np.c_[corners, np.ones(8)].T).T[:, :3]
+    if (eye[:, 2] > -1e-6).any():
+        return 0, 0, cam.width, cam.height
+    t = 1.0 / math.tan(math.radians(cam.fov_y_deg) / 2)
+    ndc_x = eye[:, 0] * t / cam.aspect / -eye[:, 2]
+    ndc_y = eye[:, 1] * t / -eye[:, 2]
+    px = (ndc_x + 1) / 2 * cam.width
+    py = (1 - ndc_y) / 2 * cam.height
+    x0 = max(int(math.floor(px.min())) - pad, 0)
+    y0 = max(int(math.floor(py.min())) - pad, 0)
+    x1 = min(int(math.ceil(px.max())) + pad, cam.width)
+    y1 = min(int(math.ceil(py.max())) + pad, cam.height)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    return x0, y0, x1 - x0, y1 - y0
+
+
+def strip_tiles(rect, cell: int = CELL) -> list[list[tuple[int, int, int, int]]]:
+    """Cells of ``rect`` grouped by row band, bands ordered from the middle outwards."""
+    x0, y0, w, h = rect
+    bands = []
+    for y in range(y0, y0 + h, cell):
+        hh = min(cell, y0 + h - y)
+        bands.append([(x, y, min(cell, x0 + w - x), hh) for x in range(x0, x0 + w, cell)])
+    mid = (len(bands) - 1) / 2
+    order = sorted(range(len(bands)), key=lambda i: (abs(i - mid), i))
+    return [bands[i] for i in order]
+
+
+class ProgressiveGI:
+    """Two GI images the compositor blends, both float32 (h, w, 4) linear, row 0 at the top:
+
+    ``preview``: the whole preview camera (alpha 1 = asset, 0 = background);
+    ``full``: the layer camera, alpha -1 where no tile has been rendered yet.
+    ``preview_dirty`` / ``take_dirty()`` tell the viewer what to upload to the GPU.
+    """
+
+    def __init__(self, render, clock=time.perf_counter):
+        self.render = render
+        self.clock = clock
+        self.preview = np.zeros((1, 1, 4), dtype=np.float32)
+        self.full: np.ndarray | None = None
+        self.camera: Camera | None = None
+        self.preview_camera: Camera | None = None
+        self.rect = None
+        self.preview_scale = 0.25
+        self.effective_scale = 0.25
+        self.ms_per_px: float | None = None
+        self._bands: list[list] = []
+        self._cells_total = 0
+        self._cells_done = 0
+        self._preview_pending = False
+        self.preview_dirty = False
+        self.full_reset = False
+        self.dirty_rects: list[tuple[int, int, int, int]] = []
+        self.last_preview_ms = 0.0
+
+    # -- state the UI shows ----------------------------------------------------------------------
+    @property
+    def progress(self) -> float:
+        if self._preview_pending:
+            return 0.0
+        return 1.0 if self._cells_total == 0 else self._cells_done / self._cells_total
+
+    @property
+    def refining(self) -> bool:
+        return self._preview_pending or self._cells_done < self._cells_total
+
+    # -- control ---------------------------------------------------------------------------------
+    def cell_size(self, budget_ms: float) -> int:
+        """Square cells that cost about one frame budget each (a power of two in 8..64)."""
+        if not self.ms_per_px:
+            return CELL
+        side = math.sqrt(max(budget_ms, 1e-3) / self.ms_per_px)
+        return int(min(max(2 ** round(math.log2(max(side, 1.0))), MIN_CELL), MAX_CELL))
+
+    def restart(self, camera: Camera, rect, preview_scale: float, budget_ms: float = 60.0) -> None:
+        """New view/material/setting: everything must be gathered again, preview first."""
+        if preview_scale != self.preview_scale:
+            self.preview_scale = self.effective_scale = float(preview_scale)
+        same_size = self.full is not None and self.full.shape[:2] == (camera.height, camera.width)
+        old_rect = self.rect
+        self.camera, self.rect = camera, rect
+        if same_size:  # only what the old and the new rectangle covered has to be re-sent
+            if old_rect is not None:
+                x, y, w, h = old_rect
+                self.full[y:y + h, x:x + w] = 0.0
+            self.dirty_rects = [r for r in (old_rect, rect) if r is not None]
+        else:
+            self.full = np.zeros((camera.height, camera.width, 4), dtype=np.float32)
+            self.full_reset = True
+            self.dirty_rects = []
+        self._bands = [] if rect is None else strip_tiles(rect, self.cell_size(budget_ms))
+        self._cells_total = sum(len(b) for b in self._bands)
+        self._cells_done = 0
+        self._preview_pending = rect is not None
+        if rect is None:  # asset off screen: nothing to draw
+            self.preview = np.zeros((1, 1, 4), dtype=np.float32)
+            self.preview_camera = scaled_camera(camera, 1 / max(camera.width, camera.height))
+            self.preview_dirty = True
+        else:
+            x, y, w, h = rect
+            self.full[y:y + h, x:x + w, 3] = -1.0
+
+    def step(self, budget_ms: float, allow_tiles: bool = True) -> bool:
+        """Do up to ``budget_ms`` of work; True when an image changed."""
+        if self.camera is None:
+            return False
+        changed = False
+        start = self.clock()
+        if self._preview_pending:
+            self._preview(budget_ms)
+            changed = True
+        while allow_tiles and self._bands:
+            elapsed = (self.clock() - start) * 1e3
+            if changed and elapsed >= budget_ms:
+                break
+            self._tile(max(budget_ms - elapsed, budget_ms * 0.25))
+            changed = True
+        return changed
+
+    def finish(self) -> None:
+        """Complete the refinement now (screenshots, offscreen runs)."""
+        while self.refining:
+            self.step(1e9)
+
+    # -- work ------------------------------------------------------------------------------------
+    def _preview(self, budget_ms: float) -> None:
+        cam, rect = self.camera, self.rect
+        s = self.effective_scale
+        # Predict before rendering (one call cannot be interrupted): at most about two frame
+        # budgets at the measured cost per pixel; 1/8 until a cost has been measured.
+        if self.ms_per_px:
+            fit = math.sqrt(2.0 * budget_ms / (self.ms_per_px * max(rect[2] * rect[3], 1)))
+            s = min(s, max(MIN_PREVIEW_SCALE, fit))
+        else:
+            s = min(s, FIRST_PREVIEW_SCALE)
+        small = scaled_camera(cam, s)
+        sx, sy = small.width / cam.width, small.height / cam.height
+        x0, y0 = int(math.floor(rect[0] * sx)), int(math.floor(rect[1] * sy))
+        x1 = min(int(math.ceil((rect[0] + rect[2]) * sx)) + 1, small.width)
+        y1 = min(int(math.ceil((rect[1] + rect[3]) * sy)) + 1, small.height)
+        t0 = self.clock()
+        lo = self.render(small, (x0, y0, x1 - x0, y1 - y0))
+        ms = (self.clock() - t0) * 1e3
+        self.last_preview_ms = ms
+        self.preview = np.zeros((small.height, small.width, 4), dtype=np.float32)
+        self.preview[y0:y1, x0:x1] = lo
+        self.preview_camera = small
+        self.preview_dirty = True
+        self._preview_pending = False
+        # Adapt: keep the preview within the budget, climb back when it is cheap.
+        self.effective_scale = s
+        if ms > 1.5 * budget_ms:
+            self.effective_scale = max(MIN_PREVIEW_SCALE, s * 0.7)
+        elif ms < 0.3 * budget_ms:
+            self.effective_scale = min(self.preview_scale, s / 0.7)
+        if (x1 - x0) * (y1 - y0):
+            self._learn(ms, (x1 - x0) * (y1 - y0))
+        if self._cells_done == 0:  # now that the cost per pixel is known, size the cells
+            self._bands = strip_tiles(rect, self.cell_size(budget_ms))
+            self._cells_total = sum(len(b) for b in self._bands)
+
+    def _learn(self, ms: float, npx: int) -> None:
+        per = ms / npx
+        self.ms_per_px = per if self.ms_per_px is None else 0.5 * (self.ms_per_px + per)
+
+    def _tile(self, budget_ms: float) -> None:
+        band = self._bands[0]
+        cells = 1
+        if self.ms_per_px:
+            cell_px = band[0][2] * band[0][3]
+            cells = max(1, int(budget_ms / (self.ms_per_px * cell_px)))
+        run = band[:cells]
+        x0, y0 = run[0][0], run[0][1]
+        w = run[-1][0] + run[-1][2] - x0
+        h = run[0][3]
+        t0 = self.clock()
+        img = self.render(self.camera, (x0, y0, w, h))
+        self._learn((self.clock() - t0) * 1e3, w * h)
+        self.full[y0:y0 + h, x0:x0 + w] = img
+        self.dirty_rects.append((x0, y0, w, h))
+        del band[:cells]
+        if not band:
+            self._bands.pop(0)
+        self._cells_done += len(run)
+
+    def take_dirty(self) -> tuple[bool, bool, list[tuple[int, int, int, int]]]:
+        """(preview changed, full image reset, rectangles of ``full`` written since)."""
+        out = (self.preview_dirty, self.full_reset, self.dirty_rects)
+        self.preview_dirty, self.full_reset, self.dirty_rects = False, False, []
+        return out

@@ -1,0 +1,257 @@
+"""GPU side of the viewport: room splats, the asset G-buffer, and the composite pass.
+
+One instance per context; the window and the offscreen runner use the same one, so a batch
+screenshot is exactly what the window shows under its panels. Every frame:
+
+1. the room's point splats into an RGBA32F target with depth (app.render.splat),
+2. the placed asset rasterised into a normal + eye-depth G-buffer (cheap, full resolution),
+3. the composite compute pass (shaders/viewer_composite.glsl) blends the room with the GI
+   images handed over by app.ui.refine, tone maps, and writes an RGBA8 display image plus the
+   linear composite,
+4. the display image is blitted to the target framebuffer (no fragment pass: see the llvmpipe
+   note in the project conventions).
+
+Textures are in GL orientation (row 0 at the bottom); numpy images (row 0 at the top) are flipped
+on upload and read-back here and nowhere else.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.camera import Camera
+from app.render.programs import load_compute, load_program
+from app.render.splat import SplatRenderer, gl_mat, near_far, relative_view
+
+BACKGROUND = (0.02, 0.02, 0.025)
+
+
+def _flip(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a[::-1])
+
+
+class ViewportRenderer:
+    def __init__(self, ctx):
+        import moderngl
+        self.moderngl = moderngl
+        self.ctx = ctx
+        from app.ui import composite as twin
+        weights = {"NORMAL_SHARPNESS": repr(float(twin.NORMAL_SHARPNESS)),
+                   "DEPTH_TOLERANCE": repr(float(twin.DEPTH_TOLERANCE)),
+                   "OFF_GUIDE_WEIGHT": repr(float(twin.OFF_GUIDE_WEIGHT))}
+        self.room_cs = load_compute(ctx, "viewer_composite.glsl", weights)
+        self.asset_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, ASSET_PASS=1))
+        self.label_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, LABEL_PASS=1))
+        self.gbuf_prog = load_program(ctx, "viewer_gbuffer.glsl")
+        self.size = (0, 0)
+        self.splat: SplatRenderer | None = None
+        self.base_radius = 0.01
+        self.asset_vao = None
+        self._asset_buffers = []
+        self.asset_origin = np.zeros(3)
+        self.asset_bounds = None
+        self.preview_tex = ctx.texture((1, 1), 4, np.zeros(4, "f4").tobytes(), dtype="f4")
+        self.full_tex = ctx.texture((1, 1), 4, np.zeros(4, "f4").tobytes(), dtype="f4")
+        self.label_tex = ctx.texture((1, 1), 4, bytes(4))
+        self.label_size = (0, 0)
+        for t in (self.preview_tex, self.full_tex):
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._targets = []
+        self.scene_bounds = (np.zeros(3), np.ones(3))
+
+    # -- resources -------------------------------------------------------------------------------
+    def resize(self, width: int, height: int) -> None:
+        if (width, height) == self.size:
+            return
+        for obj in self._targets:
+            obj.release()
+        ctx, mgl = self.ctx, self.moderngl
+        w, h = max(int(width), 1), max(int(height), 1)
+        self.size = (w, h)
+        self.room_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.room_depth = ctx.depth_texture((w, h))
+        self.room_depth.compare_func = ""
+        self.room_fbo = ctx.framebuffer([self.room_tex], self.room_depth)
+        self.gbuf_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.gbuf_depth = ctx.depth_texture((w, h))
+        self.gbuf_fbo = ctx.framebuffer([self.gbuf_tex], self.gbuf_depth)
+        self.linear_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.display_tex = ctx.texture((w, h), 4)
+        self.display_fbo = ctx.framebuffer([self.display_tex])
+        for t in (self.room_tex, self.room_depth, self.gbuf_tex, self.linear_tex, self.display_tex):
+            t.filter = (mgl.NEAREST, mgl.NEAREST)
+        self._targets = [self.room_fbo, self.room_tex, self.room_depth, self.gbuf_fbo,
+                         self.gbuf_tex, self.gbuf_depth, self.display_fbo, self.linear_tex,
+                         self.display_tex]
+
+    def set_cloud(self, cloud) -> None:
+        if self.splat is not None:
+            self.splat.release()
+        self.splat = SplatRenderer(cloud, ctx=self.ctx)
+        self.base_radius = self.splat.radius
+
+    def set_colors(self, colors: np.ndarray) -> None:
+        self.splat.set_colors(colors)
+
+    def set_asset(self, mesh) -> None:
+        """Upload the placed mesh (world space) for the G-buffer; None removes the asset."""
+        for b in self._asset_buffers:
+            b.release()
+        self._asset_buffers, self.asset_vao, self.asset_bounds = [], None, None
+        if mesh is None or mesh.n_faces == 0:
+            return
+        lo, hi = mesh.bounds()
+        self.asset_bounds = (np.asarray(lo, np.float64), np.asarray(hi, np.float64))
+        self.asset_origin = (self.asset_bounds[0] + self.asset_bounds[1]) / 2
+        pos = (mesh.positions.astype(np.float64) - self.asset_origin).astype("f4")
+        vbo = self.ctx.buffer(pos.tobytes())
+        nbo = self.ctx.buffer(np.ascontiguousarray(mesh.normals, "f4").tobytes())
+        ibo = self.ctx.buffer(np.ascontiguousarray(mesh.indices, "u4").tobytes())
+        self.asset_vao = self.ctx.vertex_array(
+            self.gbuf_prog, [(vbo, "3f", "in_position"), (nbo, "3f", "in_normal")],
+            index_buffer=ibo, index_element_size=4)
+        self._asset_buffers = [self.asset_vao, vbo, nbo, ibo]
+
+    def set_label(self, rgba: np.ndarray | None) -> None:
+        """A small RGBA8 text image (row 0 at the top) shown over the asset; None hides it."""
+        if rgba is None:
+            self.label_size = (0, 0)
+            return
+        h, w = rgba.shape[:2]
+        if self.label_tex.size != (w, h):
+            self.label_tex.release()
+            self.label_tex = self.ctx.texture((w, h), 4)
+        self.label_tex.write(_flip(rgba.astype(np.uint8)).tobytes())
+        self.label_size = (w, h)
+
+    # -- GI images from app.ui.refine ------------------------------------------------------------
+    def upload_preview(self, img: np.ndarray) -> None:
+        h, w = img.shape[:2]
+        if self.preview_tex.size != (w, h):
+            self.preview_tex.release()
+            self.preview_tex = self.ctx.texture((w, h), 4, dtype="f4")
+            self.preview_tex.filter = (self.moderngl.NEAREST, self.moderngl.NEAREST)
+        self.preview_tex.write(_flip(img.astype("f4")).tobytes())
+
+    def upload_full(self, img: np.ndarray, rects=None) -> None:
+        """Whole image when ``rects`` is None, else only those (x, y, w, h) top-left rectangles."""
+        h, w = img.shape[:2]
+        if self.full_tex.size != (w, h):
+            self.full_tex.release()
+            self.full_tex = self.ctx.texture((w, h), 4, dtype="f4")
+            self.full_tex.filter = (self.moderngl.NEAREST, self.moderngl.NEAREST)
+            rects = None
+        if rects is None:
+            self.full_tex.write(_flip(img.astype("f4")).tobytes())
+            return
+        for x, y, rw, rh in rects:
+            block = img[y:y + rh, x:x + rw].astype("f4")
+            self.full_tex.write(_flip(block).tobytes(), viewport=(x, h - y - rh, rw, rh))
+
+    # -- passes ----------------------------------------------------------------------------------
+    def draw_room(self, camera: Camera, splat_scale: float = 1.0) -> None:
+        self.room_fbo.use()
+        self.room_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        if self.splat is not None:
+            self.splat.radius = self.base_radius * float(splat_scale)
+            self.ctx.enable_only(self.moderngl.NOTHING)
+            self.splat.draw(camera)
+            self.ctx.enable_only(self.moderngl.NOTHING)
+
+    def draw_gbuffer(self, camera: Camera) -> None:
+        self.gbuf_fbo.use()
+        self.gbuf_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        if self.asset_vao is None:
+            return
+        lo, hi = self.asset_bounds
+        near, far = near_far(camera, lo, hi)
+        self.gbuf_prog["u_view"].write(gl_mat(relative_view(camera, self.asset_origin)))
+        self.gbuf_prog["u_proj"].write(gl_mat(camera.projection(near, far)))
+        self.ctx.enable_only(self.moderngl.DEPTH_TEST)
+        self.asset_vao.render(self.moderngl.TRIANGLES)
+
+    def composite(self, camera: Camera, exposure: float, tonemap: str, raw_room: bool,
+                  unavailable: bool, asset_rect=None, label_rect=None, room: bool = True) -> None:
+        """Run the composite passes. Rectangles are (x, y, w, h) with row 0 at the TOP;
+        ``room=False`` re-runs only the asset rectangle (after a GI update) and the label."""
+        w, h = self.size
+        if self.splat is not None:
+            near, far = near_far(camera, *self.splat.bounds)
+        else:
+            near, far = 0.01, 100.0
+        self.room_tex.use(0)
+        self.room_depth.use(1)
+        self.gbuf_tex.use(2)
+        self.preview_tex.use(3)
+        self.full_tex.use(4)
+        self.label_tex.use(5)
+        self.linear_tex.bind_to_image(0, read=False, write=True)
+        self.display_tex.bind_to_image(1, read=True, write=True)
+        gl_label = None
+        if label_rect and self.label_size[0]:
+            lx, ly, lw, lh = label_rect
+            gl_label = (lx, h - ly - lh, lw, lh)
+        values = {
+            "u_size": (w, h), "u_preview_size": self.preview_tex.size,
+            "u_full_size": self.full_tex.size, "u_near": near, "u_far": far,
+            "u_exposure": float(exposure), "u_tonemap": 0 if tonemap == "pbr-neutral" else 1,
+            "u_raw_room": int(raw_room), "u_unavailable": int(unavailable),
+            "u_background": BACKGROUND, "u_label_rect": gl_label or (0, 0, 0, 0),
+            "u_room": 0, "u_room_depth": 1, "u_gbuf": 2, "u_preview": 3, "u_full": 4, "u_label": 5,
+        }
+
+        def run(cs, rect_gl):
+            x, y, rw, rh = rect_gl
+            x0, y0 = max(x, 0), max(y, 0)
+            x1, y1 = min(x + rw, w), min(y + rh, h)
+            if x1 <= x0 or y1 <= y0:
+                return
+            for key, val in values.items():
+                if key in cs:
+                    cs[key].value = val
+            cs["u_offset"].value = (x0, y0)
+            cs["u_extent"].value = (x1 - x0, y1 - y0)
+            cs.run((x1 - x0 + 7) // 8, (y1 - y0 + 7) // 8)
+            self.ctx.memory_barrier()
+
+        if room:
+            run(self.room_cs, (0, 0, w, h))
+        if asset_rect is not None and self.asset_vao is not None:
+            ax, ay, aw, ah = asset_rect
+            run(self.asset_cs, (ax, h - ay - ah, aw, ah))
+        if gl_label is not None:
+            run(self.label_cs, gl_label)
+
+    def blit(self, target) -> None:
+        """Copy the display image into ``target`` (a framebuffer of the same size)."""
+        self.ctx.copy_framebuffer(target, self.display_fbo)
+
+    # -- read-back -------------------------------------------------------------------------------
+    def read_display(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB, row 0 at the top."""
+        w, h = self.size
+        a = np.frombuffer(self.display_tex.read(), np.uint8).reshape(h, w, 4)
+        return _flip(a[..., :3])
+
+    def read_linear(self) -> np.ndarray:
+        """(H, W, 4) float32 linear composite, alpha = asset; row 0 at the top."""
+        w, h = self.size
+        return _flip(np.frombuffer(self.linear_tex.read(), "f4").reshape(h, w, 4))
+
+    def read_inputs(self) -> dict:
+        """Every input of the composite as numpy (GL orientation), for the numpy twin."""
+        w, h = self.size
+
+        def f4(tex, comps=4):
+            tw, th = tex.size
+            return np.frombuffer(tex.read(), "f4").reshape(th, tw, comps).copy()
+        depth = np.frombuffer(self.room_depth.read(), "f4").reshape(h, w).copy()
+        return {"room": f4(self.room_tex), "room_depth": depth, "gbuf": f4(self.gbuf_tex),
+                "preview": f4(self.preview_tex), "full": f4(self.full_tex)}
+
+    def release(self) -> None:
+        for obj in self._targets + self._asset_buffers + [self.preview_tex, self.full_tex,
+                                                          self.label_tex]:
+            obj.release()
+        if self.splat is not None:
+            self.splat.release()

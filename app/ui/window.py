@@ -1,0 +1,361 @@
+"""The look-dev window: moderngl-window (pyglet) + imgui-bundle around a ViewerEngine.
+
+The whole window is the viewport; the panels are imgui windows over its left edge and the
+stats over its top-right corner, so the asset (framed at the centre) is never hidden.
+
+Navigation (Blender first, Maya's Alt combinations too):
+    middle drag / left drag          orbit about the pivot
+    Shift + drag, right drag         pan                 Ctrl + drag    zoom
+    wheel                            zoom                F              frame the asset
+    Alt + left / middle / right      orbit / pan / zoom (Maya)
+    Shift + F (or the button)        fly mode: W A S D move, Q / E down / up, drag to look,
+                                     wheel = speed, Esc or Shift + F leaves
+    G / R / S                        asset gizmo: move / rotate / scale
+    F12                              screenshot (PNG + EXR, once the refinement is complete)
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import ScanlightError
+from app.settings import Session, save_last_session
+from app.ui.engine import ViewerEngine
+
+log = logging.getLogger(__name__)
+
+SCRIPT_ENV = "SCANLIGHT_UI_SCRIPT"
+
+
+def load_script(path: str):
+    """A test/automation hook: a Python file defining ``on_frame(viewer, frame_index)``."""
+    spec = importlib.util.spec_from_file_location("scanlight_ui_script", path)
+    if spec is None or spec.loader is None:
+        raise ScanlightError(path, "cannot load the UI script")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    if not hasattr(mod, "on_frame"):
+        raise ScanlightError(path, "UI script has no on_frame(viewer, frame_index) function")
+    return mod.on_frame
+
+
+class ViewerWindow:
+    def __init__(self, session: Session, size=(1280, 800), script=None, title="Scanlight"):
+        import moderngl_window as mglw
+        from imgui_bundle import imgui
+        from moderngl_window.conf import settings
+        from moderngl_window.integrations.imgui_bundle import ModernglWindowRenderer
+
+        from app.render.context import set_window_context
+        from app.ui.filedialog import FileDialog
+
+        settings.WINDOW.update({"class": "moderngl_window.context.pyglet.Window",
+                                "gl_version": (4, 3), "size": tuple(size), "title": title,
+                                "vsync": False, "resizable": True, "aspect_ratio": None,
+                                "samples": 0})
+        self.wnd = mglw.create_window_from_settings()
+        self.wnd.exit_key = None
+        self.ctx = self.wnd.ctx
+        set_window_context(self.ctx)
+        imgui.create_context()
+        imgui.get_io().set_ini_filename("")
+        imgui.style_colors_dark()
+        self.imgui = ModernglWindowRenderer(self.wnd)
+        self.engine = ViewerEngine(self.ctx, session, size=self.wnd.buffer_size)
+        self.session = session
+        self.dialog = FileDialog()
+        self.script = script
+        self.frame_index = 0
+        self.quit_requested = False
+        self.fly = False
+        self.gizmo_op = "translate"
+        self.selected_capture = 0 if session.capture_cameras else -1
+        self.capture_texture = None
+        self.photo_texture = None
+        self.hdr_task = None
+        self.hdr_report: dict | None = None
+        self.pending_screenshot: str | None = None
+        self.last_screenshot: list[str] = []
+        self._keys_down: set = set()
+        self._dragging = False
+        self._last_time = time.perf_counter()
+        self.frame_intervals: list[float] = []   # ms between frames: what the user feels
+        self._install_events()
+
+    # -- events ----------------------------------------------------------------------------------
+    def _install_events(self) -> None:
+        w = self.wnd
+        w.resize_func = self._on_resize
+        w.key_event_func = self._on_key
+        w.mouse_position_event_func = self.imgui.mouse_position_event
+        w.mouse_drag_event_func = self._on_drag
+        w.mouse_press_event_func = self._on_press
+        w.mouse_release_event_func = self._on_release
+        w.mouse_scroll_event_func = self._on_scroll
+        w.unicode_char_entered_func = self.imgui.unicode_char_entered
+        w.files_dropped_event_func = self._on_drop
+        w.close_func = self._on_close
+
+    def _ui_wants_mouse(self) -> bool:
+        from imgui_bundle import imgui, imguizmo
+        gz = imguizmo.im_guizmo
+        return imgui.get_io().want_capture_mouse or gz.is_using() or gz.is_over()
+
+    def _on_resize(self, width, height) -> None:
+        self.imgui.resize(width, height)
+
+    def _on_press(self, x, y, button) -> None:
+        self.imgui.mouse_press_event(x, y, button)
+        self._dragging = not self._ui_wants_mouse()
+
+    def _on_release(self, x, y, button) -> None:
+        self.imgui.mouse_release_event(x, y, button)
+        self._dragging = False
+
+    def _on_scroll(self, dx, dy) -> None:
+        self.imgui.mouse_scroll_event(dx, dy)
+        if self._ui_wants_mouse():
+            return
+        s = self.session.settings
+        if self.fly:
+            s.set("view.fly_speed", s["view.fly_speed"] * (1.25 ** dy))
+        else:
+            self.engine.nav.zoom(dy)
+
+    def _on_drag(self, x, y, dx, dy) -> None:
+        self.imgui.mouse_drag_event(x, y, dx, dy)
+        if not self._dragging:
+            return
+        nav, st, mods = self.engine.nav, self.wnd.mouse_states, self.wnd.modifiers
+        if self.fly:
+            nav.look(dx, dy)
+            return
+        if mods.alt:  # Maya
+            if st.left:
+                nav.orbit(dx, dy)
+            elif st.middle:
+                nav.pan(dx, dy, self.engine.size[1])
+            elif st.right:
+                nav.dolly_drag(dy)
+            return
+        if mods.ctrl:
+            nav.dolly_drag(dy)
+        elif mods.shift or st.right:
+            nav.pan(dx, dy, self.engine.size[1])
+        else:
+            nav.orbit(dx, dy)
+
+    def _on_key(self, key, action, modifiers) -> None:
+        from imgui_bundle import imgui
+        self.imgui.key_event(key, action, modifiers)
+        keys = self.wnd.keys
+        if action == keys.ACTION_RELEASE:
+            self._keys_down.discard(key)
+            return
+        if action != keys.ACTION_PRESS:
+            return
+        self._keys_down.add(key)
+        if imgui.get_io().want_capture_keyboard:
+            return
+        if key == keys.F and modifiers.shift:
+            self.set_fly(not self.fly)
+        elif key == keys.ESCAPE and self.fly:
+            self.set_fly(False)
+        elif self.fly:
+            return
+        elif key == keys.F:
+            self.engine.frame_asset()
+        elif key == keys.G:
+            self.gizmo_op = "translate"
+        elif key == keys.R:
+            self.gizmo_op = "rotate"
+        elif key == keys.S and modifiers.ctrl:
+            self.save_session_dialog()
+        elif key == keys.S:
+            self.gizmo_op = "scale"
+        elif key == keys.F12:
+            self.request_screenshot()
+
+    def set_fly(self, on: bool) -> None:
+        self.fly = bool(on)
+        self._keys_down.clear()
+
+    def _fly_step(self, dt: float) -> bool:
+        if not self.fly:
+            return False
+        k = self.wnd.keys
+        held = self._keys_down
+        f = (k.W in held) - (k.S in held)
+        r = (k.D in held) - (k.A in held)
+        u = (k.E in held) - (k.Q in held)
+        if not (f or r or u):
+            return False
+        step = self.session.settings["view.fly_speed"] * min(dt, 0.25)
+        self.engine.nav.fly(f * step, r * step, u * step)
+        return True
+
+    def _on_drop(self, x, y, paths) -> None:
+        for p in paths:
+            self.engine.guard(f"opening {Path(p).name}", self.open_path, str(p))
+
+    def _on_close(self) -> None:
+        self.quit_requested = True
+
+    # -- files -----------------------------------------------------------------------------------
+    def open_path(self, path: str) -> None:
+        """Open a dropped or chosen file by its kind: cloud, asset, photo, session or object."""
+        from app.ui.files import open_into
+        if open_into(self.session, path) == "session":
+            self.load_session(path)
+        else:
+            self.photo_texture = None
+
+    def load_session(self, path) -> None:
+        from app.settings import load_session
+        new = load_session(path)
+        self.replace_session(new)
+
+    def replace_session(self, new: Session) -> None:
+        if self.hdr_task is not None and self.hdr_task.running:
+            self.hdr_task.cancel()
+        old_engine = self.engine
+        self.session = new
+        self.engine = ViewerEngine(self.ctx, new, size=self.wnd.buffer_size)
+        old_engine.release()
+        self.selected_capture = 0 if new.capture_cameras else -1
+        self.capture_texture = self.photo_texture = None
+
+    def save_session(self, path) -> None:
+        s = self.session
+        s.camera = self.engine.camera()
+        if self.engine.cloud is not None and self.engine.cloud.hdr is not None and not s.hdr_cloud:
+            from app.io.pointcloud import save_cloud
+            hdr_path = Path(path).with_suffix(".hdr.ply")
+            save_cloud(self.engine.cloud.hdr, hdr_path)
+            s.hdr_cloud = str(hdr_path.resolve())
+        s.save(path)
+        self.engine.error(f"session saved to {path}", "info")
+
+    def save_session_dialog(self) -> None:
+        self.dialog.open("Save session", (".json",),
+                         lambda p: self.engine.guard("saving the session", self.save_session, p),
+                         save=True, default_name="session.json")
+
+    # -- screenshots -----------------------------------------------------------------------------
+    def request_screenshot(self, path: str | None = None) -> None:
+        """Saved once the refinement has finished (the window keeps running meanwhile)."""
+        self.pending_screenshot = path or time.strftime("scanlight-%Y%m%d-%H%M%S.png")
+
+    def read_window(self) -> np.ndarray:
+        """The window's current framebuffer (panels included), (H, W, 3) uint8, top row first."""
+        w, h = self.wnd.buffer_size
+        data = self.wnd.fbo.read(viewport=(0, 0, w, h), components=3, alignment=1)
+        return np.frombuffer(data, np.uint8).reshape(h, w, 3)[::-1].copy()
+
+    def save_window_png(self, path) -> None:
+        from app.io.images import write_png
+        write_png(path, self.read_window())
+
+    def quit(self) -> None:
+        self.quit_requested = True
+
+    # -- HDR expansion ---------------------------------------------------------------------------
+    def start_expansion(self, synchronous: bool = False) -> None:
+        from app.ui.hdr_task import ExpansionRequest, ExpansionTask
+        e, s = self.engine, self.session
+        if e.photo is None:
+            raise ScanlightError(None, "open an HDR photo first (Scene panel, or drop an .exr)")
+        if not s.capture_cameras:
+            raise ScanlightError(None, "add a capture camera first (Capture cameras panel)")
+        req = ExpansionRequest.from_settings(e.cloud.ldr, e.photo,
+                                             [c.position for c in s.capture_cameras], s.settings)
+        self.hdr_task = ExpansionTask(req, synchronous=synchronous)
+        self.hdr_report = None
+
+    def poll_expansion(self) -> None:
+        t = self.hdr_task
+        if t is None:
+            return
+        t.poll()
+        if t.running:
+            return
+        self.hdr_task = None
+        if t.state == "done":
+            self.hdr_report = t.result.report
+            self.engine.set_hdr_cloud(t.result.cloud, None)
+            self.photo_texture = None
+            self.engine.error(f"HDR expansion done in {t.seconds:.1f} s "
+                              f"(alpha = {t.result.report.get('alpha')})", "info")
+        elif t.state == "failed":
+            self.engine.error(f"HDR expansion failed: {t.error}")
+        else:
+            self.engine.error("HDR expansion cancelled", "info")
+
+    # -- frame -----------------------------------------------------------------------------------
+    def interacting(self) -> bool:
+        from imgui_bundle import imgui, imguizmo
+        return (self._dragging or bool(self.fly and self._keys_down)
+                or imgui.is_any_item_active() or imguizmo.im_guizmo.is_using())
+
+    def render_frame(self) -> None:
+        from imgui_bundle import imgui, imguizmo
+
+        from app.ui import overlay, panels
+        now = time.perf_counter()
+        dt, self._last_time = now - self._last_time, now
+        if self.frame_index:
+            self.frame_intervals.append(dt * 1e3)
+            del self.frame_intervals[:-240]
+        self.engine.resize(*self.wnd.buffer_size)
+        moving = self._fly_step(dt)
+        self.poll_expansion()
+        self.engine.guard("drawing the viewport", self.engine.frame,
+                          interacting=moving or self.interacting())
+        self.wnd.use()
+        self.engine.guard("showing the viewport", self.engine.view.blit, self.wnd.fbo)
+        io = imgui.get_io()
+        io.delta_time = max(dt, 1e-4)
+        imgui.new_frame()
+        imguizmo.im_guizmo.begin_frame()
+        self.engine.guard("viewport overlay", overlay.draw, self)
+        panels.draw(self)
+        self.dialog.draw()
+        imgui.render()
+        self.wnd.use()
+        self.imgui.render(imgui.get_draw_data())
+        if self.pending_screenshot and not self.engine.gi.refining:
+            path, self.pending_screenshot = self.pending_screenshot, None
+            files = self.engine.guard("saving the screenshot", self.engine.screenshot, path)
+            if files:
+                self.last_screenshot = files
+                self.engine.error("screenshot saved: " + ", ".join(files), "info")
+        if self.script is not None:
+            self.script(self, self.frame_index)
+        self.frame_index += 1
+
+    def run(self, frames: int = 0, screenshot: str | None = None) -> int:
+        """The frame loop; ``frames`` > 0 stops after that many frames (tests, batch)."""
+        try:
+            while not self.wnd.is_closing and not self.quit_requested:
+                self.render_frame()
+                self.wnd.swap_buffers()
+                if frames and self.frame_index >= frames:
+                    break
+            if screenshot:
+                files = self.engine.screenshot(screenshot)
+                print("screenshot: " + ", ".join(files))
+        finally:
+            self.engine.guard("saving the last session", self._save_last)
+            if self.hdr_task is not None and self.hdr_task.running:
+                self.hdr_task.cancel()
+            self.wnd.destroy()
+        return 0
+
+    def _save_last(self) -> None:
+        self.session.camera = self.engine.camera()
+        save_last_session(self.session)

@@ -1,0 +1,158 @@
+"""Progressive refinement (app/ui/refine.py) with an analytic renderer and a fake clock."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.camera import Camera
+from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect, strip_tiles
+
+CENTRE, RADIUS = np.array([0.0, 0.6, 0.0]), 0.4
+
+
+def sphere_image(cam: Camera, tile) -> np.ndarray:
+    """Analytic render of a sphere: colour = normal * 0.5 + 0.5, alpha = hit (per pixel, so
+    the result cannot depend on the tiling)."""
+    x0, y0, w, h = tile
+    o, d = cam.pixel_rays()
+    d = d[y0:y0 + h, x0:x0 + w].reshape(-1, 3)
+    oc = o - CENTRE
+    b = d @ oc
+    disc = b * b - (oc @ oc - RADIUS ** 2)
+    hit = disc > 0
+    t = -b - np.sqrt(np.maximum(disc, 0))
+    n = (o + t[:, None] * d - CENTRE) / RADIUS
+    img = np.zeros((h * w, 4), np.float32)
+    img[hit, :3] = n[hit] * 0.5 + 0.5
+    img[hit, 3] = 1
+    return img.reshape(h, w, 4)
+
+
+class Clock:
+    """Fake time: each render 'costs' ms_per_px per pixel."""
+
+    def __init__(self, ms_per_px: float):
+        self.t, self.ms_per_px, self.calls = 0.0, ms_per_px, []
+
+    def __call__(self):
+        return self.t
+
+    def render(self, cam, tile):
+        self.calls.append((cam.width, tile))
+        self.t += self.ms_per_px * tile[2] * tile[3] / 1e3
+        return sphere_image(cam, tile)
+
+
+CAM = Camera((0.3, 1.0, 1.8), CENTRE, fov_y_deg=50, width=120, height=90)
+
+
+def test_strip_tiles_cover_the_rectangle_once():
+    rect = (7, 5, 75, 50)
+    cover = np.zeros((90, 120), int)
+    bands = strip_tiles(rect, 16)
+    for band in bands:
+        for x, y, w, h in band:
+            cover[y:y + h, x:x + w] += 1
+    assert cover[5:55, 7:82].min() == 1 and cover.sum() == 75 * 50
+    mids = [b[0][1] for b in bands]
+    assert abs(mids[0] + 8 - 30) <= 16   # the middle band comes first
+
+
+def test_screen_rect_contains_the_silhouette():
+    full = sphere_image(CAM, (0, 0, CAM.width, CAM.height))
+    ys, xs = np.nonzero(full[..., 3])
+    x, y, w, h = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    assert x <= xs.min() and xs.max() < x + w and y <= ys.min() and ys.max() < y + h
+    behind = Camera((0, 0.6, 0), (0, 0.6, -1), width=40, height=30)   # eye inside the box
+    assert screen_rect(behind, CENTRE - RADIUS, CENTRE + RADIUS) == (0, 0, 40, 30)
+    away = Camera((0, 0.6, 3), (0, 0.6, 6), width=40, height=30)      # box behind the eye
+    assert screen_rect(away, CENTRE - RADIUS, CENTRE + RADIUS) == (0, 0, 40, 30)
+
+
+def test_converged_layer_equals_a_direct_render():
+    clock = Clock(0.01)
+    gi = ProgressiveGI(clock.render, clock)
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.25, budget_ms=5)
+    assert gi.refining and gi.progress == 0.0
+    gi.finish()
+    assert not gi.refining and gi.progress == 1.0
+    direct = sphere_image(CAM, (0, 0, CAM.width, CAM.height))
+    np.testing.assert_array_equal(gi.full, direct)          # tiling changes nothing
+    small = scaled_camera(CAM, 1 / 8)          # the first preview, before any cost is known
+    assert gi.preview_camera.width == small.width
+    assert gi.preview.shape[:2] == (small.height, small.width)
+    np.testing.assert_array_equal(gi.preview[..., 3] > 0, sphere_image(
+        small, (0, 0, small.width, small.height))[..., 3] > 0)
+
+
+def test_steps_respect_the_budget_and_tiles_wait_for_idle():
+    clock = Clock(0.05)                       # 0.05 ms per pixel
+    gi = ProgressiveGI(clock.render, clock)
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.25, budget_ms=20)
+    gi.step(20, allow_tiles=False)            # interacting: preview only (first one at 1/8)
+    assert [c[0] for c in clock.calls] == [15] and gi.progress == 0.0 and gi.refining
+    gi.step(20, allow_tiles=False)
+    assert len(clock.calls) == 1              # still nothing more while interacting
+    # Cells were sized from the measured cost: 20 ms / 0.05 ms/px = 400 px -> 16 x 16 (2^4).
+    assert gi.cell_size(20) == 16
+    last = 0.0
+    while gi.refining:
+        t0 = clock.t
+        n = len(clock.calls)
+        gi.step(20)
+        spent = (clock.t - t0) * 1e3
+        # the budget is respected up to one strip (a strip is sized from the budget itself)
+        assert spent <= 20 + 16 * 16 * 0.05 * 2 + 1e-9
+        assert len(clock.calls) > n           # every frame advances
+        assert gi.progress >= last
+        last = gi.progress
+    assert gi.progress == 1.0
+
+
+def test_preview_scale_is_predicted_from_the_cost_per_pixel():
+    """One render call cannot be interrupted: once the cost per pixel is known, the preview of a
+    large asset rectangle is sized to about two frame budgets before it is rendered (above the
+    1/16 floor: here the fit is about 1/10)."""
+    clock = Clock(0.02)
+    gi = ProgressiveGI(clock.render, clock)
+    big = Camera(CAM.position, CAM.look_at, fov_y_deg=50, width=1200, height=900)
+    rect = screen_rect(big, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(big, rect, 0.25, budget_ms=40)
+    gi.step(40, allow_tiles=False)             # first preview at 1/8 teaches the cost
+    for _ in range(3):
+        gi.restart(big, rect, 0.25, budget_ms=40)
+        t0 = clock.t
+        gi.step(40, allow_tiles=False)
+        assert (clock.t - t0) * 1e3 <= 2 * 40 * 1.3   # two budgets (+ rounding up of sizes)
+
+
+def test_slow_previews_lower_the_preview_scale():
+    clock = Clock(2.0)                        # very slow renderer
+    gi = ProgressiveGI(clock.render, clock)
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.25)
+    gi.step(10, allow_tiles=False)
+    assert gi.effective_scale < 0.25
+    clock.ms_per_px = 1e-6                    # fast again: climbs back, never above the setting
+    for _ in range(10):
+        gi.restart(CAM, rect, 0.25)
+        gi.step(10, allow_tiles=False)
+    assert gi.effective_scale == 0.25
+
+
+def test_restart_resets_only_the_old_and_new_rectangles():
+    clock = Clock(0.0)
+    gi = ProgressiveGI(clock.render, clock)
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.5)
+    gi.finish()
+    gi.take_dirty()
+    moved = (rect[0] + 10, rect[1], rect[2], rect[3])
+    gi.restart(CAM, moved, 0.5)
+    preview, reset, rects = gi.take_dirty()
+    assert not reset and rects == [rect, moved]
+    x, y, w, h = moved
+    assert (gi.full[y:y + h, x:x + w, 3] == -1).all()        # pending, not stale
+    assert (gi.full[rect[1]:rect[1] + rect[3], rect[0]:rect[0] + 10, 3] == 0).all()

@@ -1,0 +1,111 @@
+"""UI script for tests/test_ui_window.py (loaded by the viewer through SCANLIGHT_UI_SCRIPT).
+
+Drives the real window: waits for the refinement to converge, takes window screenshots, changes
+a BRDF parameter and the PBGI mode through the settings model, orbits with synthetic mouse
+events, and writes what it saw to $SCANLIGHT_UI_OUT/result.json.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+
+OUT = Path(os.environ["SCANLIGHT_UI_OUT"])
+TARGET_MODE = os.environ.get("SCANLIGHT_UI_MODE", "envmap")
+state = {"step": 0, "since": 0, "result": {"shots": {}}}
+
+
+def converged(viewer, frame):
+    e = viewer.engine
+    return frame - state["since"] >= 3 and not e.gi.refining and not e.session.settings.pending()
+
+
+def shoot(viewer, name):
+    from app.io.images import write_png
+    viewer.save_window_png(OUT / f"{name}.png")
+    e = viewer.engine
+    write_png(OUT / f"{name}.engine.png", e.view.read_display())
+    alpha = (e.view.read_linear()[..., 3] > 0).astype("uint8") * 255
+    write_png(OUT / f"{name}.asset.png", alpha)
+    state["result"]["shots"][name] = {"mode": e.gi_stats.get("mode"),
+                                      "renderer": e.renderer_available,
+                                      "messages": [m.text for m in e.messages]}
+
+
+def on_frame(viewer, frame):
+    e, s = viewer.engine, viewer.session
+    st, res = state["step"], state["result"]
+    if frame > 4000:
+        res["error"] = f"timed out at step {st}"
+        st = 99
+    if st == 0 and converged(viewer, frame):
+        shoot(viewer, "a")
+        s.set_material(0, {"base_color": [0.1, 0.25, 0.9], "roughness": 0.15})  # a BRDF slider
+        state["since"], st = frame, 1
+    elif st == 1 and converged(viewer, frame):
+        shoot(viewer, "b")
+        s.settings.set("pbgi.mode", TARGET_MODE)
+        state["since"], st = frame, 2
+    elif st == 2 and converged(viewer, frame):
+        shoot(viewer, "c")
+        s.settings.set("view.show_gizmo", True)
+        state["since"], st = frame, 3
+    elif st == 3 and frame - state["since"] >= 2:
+        shoot(viewer, "d")
+        w, h = e.size
+        viewer.imgui.mouse_position_event(w - 60, h // 2, 0, 0)   # hover the viewport first,
+        st = 4                                                    # as a real mouse does
+    elif st == 4:
+        # a left drag in the viewport orbits the view
+        yaw = e.nav.yaw
+        w, h = e.size
+        viewer.wnd.mouse_states.left = True
+        viewer._on_press(w - 60, h // 2, 1)
+        for _ in range(5):
+            viewer._on_drag(w - 60, h // 2, 8, 0)
+        viewer._on_release(w - 60, h // 2, 1)
+        viewer.wnd.mouse_states.left = False
+        res["yaw_change"] = (e.nav.yaw - yaw + math.pi) % (2 * math.pi) - math.pi
+        viewer.imgui.mouse_position_event(100, 300, 0, 0)         # hover the panel
+        st = 5
+    elif st == 5:
+        # ... and the same drag over the panel does not
+        yaw = e.nav.yaw
+        viewer.wnd.mouse_states.left = True
+        viewer._on_press(100, 300, 1)
+        res["panel_wants_mouse"] = bool(viewer._ui_wants_mouse())
+        viewer._on_drag(100, 300, 8, 0)
+        viewer._on_release(100, 300, 1)
+        viewer.wnd.mouse_states.left = False
+        res["yaw_change_over_panel"] = e.nav.yaw - yaw
+        res["frame_ms_median"] = sorted(e.frame_ms)[len(e.frame_ms) // 2]
+        # the HDR expansion in the background (the Run button's action)
+        s.settings.set("hdr.face_size", 64)
+        viewer.start_expansion()
+        state["job_frames"], state["job_ms"] = 0, []
+        res["interval_ms_median_before_job"] = sorted(viewer.frame_intervals)[
+            len(viewer.frame_intervals) // 2]
+        st = 6
+    elif st == 6:
+        task = viewer.hdr_task
+        if task is not None and task.running:
+            e.nav.orbit(2, 0)                           # keep the viewer busy meanwhile
+            state["job_frames"] += 1
+            state["job_ms"].append(viewer.frame_intervals[-1])
+            if "e" not in res["shots"] and task.snapshot()[1] > 0.2:
+                shoot(viewer, "e")                      # progress shown while it runs
+        else:
+            res["job_frames"] = state["job_frames"]
+            res["job_frame_ms_max"] = max(state["job_ms"] or [0.0])
+            res["cloud_display"] = s.settings["view.cloud"]
+            res["hdr_report_alpha"] = (viewer.hdr_report or {}).get("alpha")
+            state["since"], st = frame, 7
+    elif st == 7 and converged(viewer, frame):
+        shoot(viewer, "f")
+        st = 99
+    if st == 99:
+        res["frames"] = frame
+        (OUT / "result.json").write_text(json.dumps(res, indent=1))
+        viewer.quit()
+        st = 100
+    state["step"] = st

@@ -21,9 +21,9 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from app.demo import pipeline
     out = Path(getattr(args, "out", "scanlight-demo"))
-    size = int(getattr(args, "size", 128) if str(getattr(args, "size", 128)).isdigit() else 128)
+    size = getattr(args, "demo_size", None) or args.size  # `view` falls back here with its own args
     t0 = time.perf_counter()
-    report = pipeline.run_demo(out, size=size, n_points=int(getattr(args, "points", 200_000)))
+    report = pipeline.run_demo(out, size=size, n_points=getattr(args, "points", 200_000))
     report["seconds_total"] = round(time.perf_counter() - t0, 2)
     (out / "report.json").write_text(json.dumps(report, indent=1, default=_jsonable))
     print(f"demo done in {report['seconds_total']} s: images and report.json in {out}/")

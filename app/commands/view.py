@@ -21,6 +21,8 @@ def add_arguments(parser) -> None:
                         help="save a screenshot (PNG, plus EXR of the linear image) before quitting")
     parser.add_argument("--size", default="1280x800", help="window size WxH")
     parser.add_argument("--out", default="scanlight-demo", help="output folder of the headless fallback")
+    parser.add_argument("--demo-size", type=int, default=128,
+                        help="render size of the headless fallback demo")
 
 
 def run(args) -> int:

@@ -31,11 +31,8 @@ def add_arguments(parser) -> None:
 
 
 def synthetic_room(n_points: int, seed: int = 0):
-    """The demo room (app.demo.room.room_cloud), or a local stand-in when it is unavailable."""
-    try:
-        from app.demo.room import room_cloud
-    except ImportError:
-        return local_room(n_points, seed)
+    """The demo room (app.demo.room.room_cloud) at any size."""
+    from app.demo.room import room_cloud
     return room_cloud(n_points, seed)
 
 

@@ -1,0 +1,148 @@
+"""``scanlight render``: relight an asset with a point cloud (PBGI or the environment-map
+baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
+
+    scanlight render --cloud room.ply --object obj.json [--material mat.json] --camera cam.json
+                     --mode classic|envmap --microbuffer 24 --out img.exr
+                     [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
+                     [--background] [--budget-mb 1024]
+
+PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
+``--background`` composites the object over the room's point splats seen from the same camera;
+without it the background is black (alpha is in the PNG). ``--material`` overrides every
+material of the asset; without it the asset's own (glTF/MTL) materials are used.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import UsageError
+
+log = logging.getLogger(__name__)
+MODES = ("classic", "mipmapped", "hybrid", "envmap")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--cloud", required=True, metavar="C.ply", help="point cloud (PLY/PCD/XYZ)")
+    parser.add_argument("--object", required=True, metavar="O.json",
+                        help='object JSON: {"mesh": ..., "translate": ..., "scale": ...}')
+    parser.add_argument("--material", metavar="M.json",
+                        help="Disney material JSON for the whole asset (default: its own)")
+    parser.add_argument("--camera", required=True, metavar="CAM.json", help="camera JSON")
+    parser.add_argument("--mode", choices=MODES, default="classic",
+                        help="classic PBGI (default), mipmapped, hybrid, or the envmap baseline")
+    parser.add_argument("--microbuffer", type=int, default=24, metavar="M",
+                        help="micro-buffer size M x M, 8..32 (default 24)")
+    parser.add_argument("--out", required=True, metavar="IMG.exr", help="linear EXR output")
+    parser.add_argument("--png", metavar="IMG.png", help="also a tone-mapped PNG")
+    parser.add_argument("--exposure", type=float, default=0.0, metavar="STOPS",
+                        help="PNG exposure in stops (default 0)")
+    parser.add_argument("--stats", metavar="STATS.json", help="write timings and sizes as JSON")
+    parser.add_argument("--size", metavar="WxH", help="override the camera's image size")
+    parser.add_argument("--background", action="store_true",
+                        help="composite over the room's point splats")
+    parser.add_argument("--budget-mb", type=float, default=1024.0, metavar="MB",
+                        help="GPU memory budget for micro-buffers (default 1024)")
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UsageError(None, f"--size must look like 256x256, got {text!r}") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise UsageError(None, f"--size must be between 1x1 and 16384x16384, got {text!r}")
+    return w, h
+
+
+def _check_args(args) -> None:
+    from app.pbgi.microbuffer import MAX_SIZE, MIN_SIZE
+    if not MIN_SIZE <= args.microbuffer <= MAX_SIZE:
+        raise UsageError(None, f"--microbuffer must be in [{MIN_SIZE}, {MAX_SIZE}], "
+                               f"got {args.microbuffer}")
+    if Path(args.out).suffix.lower() != ".exr":
+        raise UsageError(None, f"--out must name an .exr file, got {args.out!r}")
+    if args.png and Path(args.png).suffix.lower() != ".png":
+        raise UsageError(None, f"--png must name a .png file, got {args.png!r}")
+    if not np.isfinite(args.exposure):
+        raise UsageError(None, f"--exposure must be finite, got {args.exposure}")
+    if not (np.isfinite(args.budget_mb) and args.budget_mb > 0):
+        raise UsageError(None, f"--budget-mb must be > 0, got {args.budget_mb}")
+    if args.mode in ("mipmapped", "hybrid"):
+        from app.pbgi.renderer import IMPLEMENTED
+        if args.mode not in IMPLEMENTED:
+            raise UsageError(None, f"--mode {args.mode} is not available in this build "
+                                   f"(available: {', '.join(IMPLEMENTED)})")
+
+
+def run(args) -> int:
+    from app.camera import load_camera
+    from app.io.exr import write_exr
+    from app.io.files import atomic_output
+    from app.io.formats import load_object, placed_mesh
+    from app.io.pointcloud import load_cloud
+    from app.material import load_material
+    from app.pbgi.renderer import Relighter, RenderParams
+
+    _check_args(args)
+    camera = load_camera(args.camera)
+    if args.size:
+        w, h = parse_size(args.size)
+        camera = replace(camera, width=w, height=h)
+    spec = load_object(args.object)
+    materials = [load_material(args.material)] if args.material else None
+    cloud = load_cloud(args.cloud)
+    mesh = placed_mesh(spec)
+
+    r = Relighter()
+    r.set_cloud(cloud)
+    r.set_asset(mesh)
+    params = RenderParams(mode=args.mode, microbuffer=args.microbuffer,
+                          memory_budget_mb=args.budget_mb)
+    res = r.render(camera, materials, params)
+    img = res.image
+    if not res.stats["completed"]:
+        log.warning("the render did not complete for every pixel (see stats: %s)",
+                    {k: res.stats.get(k) for k in ("incomplete_receivers", "gather_cut_short",
+                                                     "nonfinite_pixels")})
+    rgba = img.copy()
+    if args.background:
+        bg = r.background(camera)
+        a = img[..., 3:4]
+        rgba[..., :3] = img[..., :3] * a + bg[..., :3] * (1.0 - a)
+        rgba[..., 3] = np.maximum(img[..., 3], bg[..., 3])
+
+    write_exr(args.out, rgba[..., :3])
+    if args.png:
+        from app.io.images import write_png
+        from app.render.tonemap import tonemap_to_srgb8
+        write_png(args.png, tonemap_to_srgb8(rgba, args.exposure))
+    stats = dict(res.stats)
+    stats.update({"cloud": str(args.cloud), "points": len(cloud), "object": str(args.object),
+                  "triangles": int(mesh.n_faces), "camera": camera.to_dict(),
+                  "renderer": r.ctx.info.get("GL_RENDERER"),
+                  "tonemapper": "Khronos PBR Neutral", "exposure": args.exposure,
+                  "bsh": {k: v for k, v in r.hierarchy.stats.items()
+                          if isinstance(v, (int, float, str))}})
+    if args.stats:
+        with atomic_output(args.stats) as tmp:
+            Path(tmp).write_text(json.dumps(stats, indent=1, default=_jsonable))
+    print(f"rendered {camera.width}x{camera.height} ({args.mode}, M={args.microbuffer}) in "
+          f"{stats['ms']:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
+    return 0
+
+
+def _jsonable(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+__all__ = ["add_arguments", "run", "parse_size"]

@@ -1,0 +1,51 @@
+"""The final gather (paper eq. 9) shared by every mode: micro-buffer (or cube map) x Disney BRDF.
+
+See shaders/pbgi_gather.glsl. The PBGI modes read the radiance of the node each micro-pixel
+stores; the environment-map baseline reads the cube map in the same micro-pixel directions, so
+the two differ only in where incoming light comes from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.pbgi.microbuffer import table_texture
+from app.render.programs import load_compute
+
+GROUP = 64
+
+
+class Gather:
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._progs = {}
+
+    def _prog(self, cubemap: bool):
+        if cubemap not in self._progs:
+            self._progs[cubemap] = load_compute(
+                self.ctx, "pbgi_gather.glsl", defines={"RADIANCE_CUBEMAP": 1} if cubemap else None)
+        return self._progs[cubemap]
+
+    def run(self, receivers, materials, output, first: int, count: int, m: int,
+            camera_rel: np.ndarray, mb=None, nodes=None, env=None) -> None:
+        """Gather receivers [first, first + count) into ``output`` (vec4 per tile pixel).
+        Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
+        EnvironmentMap) gives the radiance."""
+        prog = self._prog(env is not None)
+        receivers.bind_to_storage_buffer(0)
+        materials.bind_to_storage_buffer(6)
+        output.bind_to_storage_buffer(7)
+        if env is None:
+            nodes.use()
+            mb.bind()
+        else:
+            table_texture(self.ctx, m).use(location=5)
+            env.texture.use(location=0)
+            prog["u_env_texel_omega"] = env.texel_omega
+        prog["u_first"] = first
+        prog["u_count"] = count
+        if "u_m" in prog:
+            prog["u_m"] = m
+        prog["u_camera"] = tuple(float(c) for c in camera_rel)
+        prog.run((count + GROUP - 1) // GROUP)
+        self.ctx.memory_barrier()

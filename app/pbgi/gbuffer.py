@@ -1,0 +1,176 @@
+"""The asset's G-buffer: the mesh rasterised into MRT float textures, then compacted into
+*receivers* (object pixels in image order) that every PBGI pass and the gather read.
+
+Why compact: the expensive passes run one invocation per object pixel, never on background
+pixels, and batches of receivers are sized from the memory budget (shaders/lib/receivers.glsl
+holds the record layout: the four MRT texels plus the pixel index).
+
+Positions are uploaded relative to the hierarchy origin (float64 on the CPU), the frame the BSH
+node centres use, so a scan far from the world origin keeps millimetre precision in float32.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.camera import Camera
+from app.render.context import bind_anchor
+from app.render.programs import load_program
+from app.render.splat import gl_mat, near_far, relative_view
+
+RECEIVER_FLOATS = 16
+TARGETS = 4
+
+
+def tile_projection(camera: Camera, near: float, far: float, tile) -> np.ndarray:
+    """The camera's projection restricted to the pixel rectangle tile = (x0, y0, w, h), row 0 at
+    the top: the same rays as the full image, so tiles assemble without seams."""
+    p = camera.projection(near, far)
+    if tile is None:
+        return p
+    x0, y0, w, h = tile
+    W, H = camera.width, camera.height
+    yb = H - y0 - h                                   # GL rows count from the bottom
+    sx, sy = W / w, H / h
+    cx, cy = (2 * x0 + w) / W - 1.0, (2 * yb + h) / H - 1.0
+    s = np.array([[sx, 0, 0, -cx * sx], [0, sy, 0, -cy * sy], [0, 0, 1, 0], [0, 0, 0, 1]], float)
+    return s @ p
+
+
+def material_table(materials) -> np.ndarray:
+    """(n, 16) float32: the 13 Disney parameters per material in lib/principled.glsl's vec4
+    packing, (base rgb, subsurface), (metallic, specular, specular_tint, roughness),
+    (anisotropic, sheen, sheen_tint, clearcoat), (clearcoat_gloss, 0, 0, 0)."""
+    from app.pbgi.brdf import pack_params
+    out = np.zeros((max(len(materials), 1), 16), dtype=np.float32)
+    for i, m in enumerate(materials):
+        out[i, :13] = pack_params(m)
+    return out
+
+
+class GBuffer:
+    """Uploads a placed mesh once; rasterises it for any camera/tile into receivers."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.prog = load_program(ctx, "gbuffer.glsl")
+        self.vao = None
+        self._buffers = []
+        self.ranges: list[tuple[int, int, int]] = []    # (material id, first index, count)
+        self._textures: dict[int, object] = {}          # id(array) -> GL texture
+        self.mesh = None
+        self.origin = None
+        self.bounds = None
+
+    # -- geometry ---------------------------------------------------------------------------
+    def upload(self, mesh, origin) -> None:
+        """(Re-)upload the mesh with positions relative to ``origin``; faces sorted by material
+        so one draw call per material binds that material's textures."""
+        self.release_geometry()
+        self.mesh, self.origin = mesh, np.asarray(origin, dtype=np.float64)
+        pos = (mesh.positions.astype(np.float64) - self.origin).astype(np.float32)
+        uv = mesh.uvs if mesh.uvs is not None else np.zeros((len(pos), 2), np.float32)
+        vbo = np.concatenate([pos, mesh.normals, uv, mesh.tangents], axis=1).astype("f4")
+        order = np.argsort(mesh.material_ids, kind="stable")
+        idx = mesh.indices[order].astype("u4")
+        mids = mesh.material_ids[order]
+        starts = np.flatnonzero(np.r_[True, mids[1:] != mids[:-1]]) if len(mids) else np.zeros(0, int)
+        ends = np.r_[starts[1:], len(mids)]
+        self.ranges = [(int(mids[s]), int(s) * 3, int(e - s) * 3) for s, e in zip(starts, ends)]
+        vb = self.ctx.buffer(vbo.tobytes())
+        ib = self.ctx.buffer(idx.tobytes() if len(idx) else b"\0" * 12)
+        self._buffers = [vb, ib]
+        self.vao = self.ctx.vertex_array(
+            self.prog, [(vb, "3f 3f 2f 4f", "in_position", "in_normal", "in_uv", "in_tangent")],
+            index_buffer=ib, index_element_size=4)
+        self.bounds = mesh.bounds() if mesh.n_faces else (np.zeros(3), np.ones(3))
+
+    def _texture(self, array):
+        key = id(array)
+        tex = self._textures.get(key)
+        if tex is None:
+            a = np.ascontiguousarray(array, dtype="f4")
+            if a.ndim == 2:
+                a = a[..., None]
+            h, w, c = a.shape
+            tex = self.ctx.texture((w, h), c, a.tobytes(), dtype="f4")
+            tex.build_mipmaps()
+            tex.repeat_x = tex.repeat_y = True
+            self._textures[key] = (tex, array)      # keep the array alive: its id is the key
+            return tex
+        return tex[0]
+
+    # -- rasterise --------------------------------------------------------------------------
+    def render(self, camera: Camera, materials, tile=None) -> dict:
+        """Rasterise; returns receivers (n, 16) float32 in image order (row 0 at the top),
+        ``coverage`` (h, w) bool and the tile size."""
+        import moderngl
+        x0, y0, w, h = tile if tile is not None else (0, 0, camera.width, camera.height)
+        ctx = self.ctx
+        colors = [ctx.texture((w, h), 4, dtype="f4") for _ in range(TARGETS)]
+        depth = ctx.depth_texture((w, h))
+        fbo = ctx.framebuffer(colors, depth)
+        try:
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            if self.vao is not None and self.ranges:
+                lo, hi = self.bounds
+                lo = np.asarray(lo, float) - self.origin
+                hi = np.asarray(hi, float) - self.origin
+                near, far = near_far(Camera(camera.position - self.origin, camera.look_at - self.origin,
+                                            camera.up, camera.fov_y_deg, camera.width, camera.height),
+                                     lo, hi)
+                near = max(near, 1e-4)
+                self.prog["u_view"].write(gl_mat(relative_view(camera, self.origin)))
+                self.prog["u_proj"].write(gl_mat(tile_projection(camera, near, far, tile)))
+                self.prog["u_camera"].value = tuple((camera.position - self.origin).tolist())
+                ctx.enable(moderngl.DEPTH_TEST)
+                ctx.disable(moderngl.CULL_FACE)
+                for mid, first, count in self.ranges:
+                    self._set_material(mid, materials[mid] if mid < len(materials) else materials[-1])
+                    self.vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+            planes = [np.frombuffer(fbo.read(components=4, dtype="f4", attachment=k), "f4")
+                      .reshape(h, w, 4)[::-1] for k in range(TARGETS)]
+        finally:
+            fbo.release()
+            depth.release()
+            for c in colors:
+                c.release()
+            bind_anchor()
+        cover = planes[0][..., 3] > 0.5
+        ys, xs = np.nonzero(cover)
+        rec = np.empty((len(ys), RECEIVER_FLOATS), dtype=np.float32)
+        for k in range(TARGETS):
+            rec[:, 4 * k:4 * k + 4] = planes[k][ys, xs]
+        rec[:, 3] = (ys * w + xs).astype(np.uint32).view(np.float32)
+        return {"receivers": rec, "coverage": cover, "width": w, "height": h,
+                "bytes": TARGETS * 16 * w * h + 4 * w * h}
+
+    def _set_material(self, mid: int, m) -> None:
+        prog = self.prog
+        prog["u_material_id"].value = float(mid)
+        prog["u_base_color"].value = tuple(float(c) for c in m.base_color)
+        prog["u_metallic"].value = float(m.metallic)
+        prog["u_roughness"].value = float(m.roughness)
+        for unit, (name, arr) in enumerate((("base", m.base_color_texture),
+                                            ("mr", m.metallic_roughness_texture),
+                                            ("normal", m.normal_texture))):
+            has = arr is not None and self.mesh.uvs is not None
+            prog[f"u_has_{name}_tex"].value = has
+            if has:
+                self._texture(arr).use(location=unit)
+            if f"u_{name}_tex" in prog:
+                prog[f"u_{name}_tex"].value = unit
+
+    def release_geometry(self) -> None:
+        if self.vao is not None:
+            self.vao.release()
+        for b in self._buffers:
+            b.release()
+        self.vao, self._buffers, self.ranges = None, [], []
+
+    def release(self) -> None:
+        self.release_geometry()
+        for tex, _ in self._textures.values():
+            tex.release()
+        self._textures.clear()

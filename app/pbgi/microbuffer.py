@@ -1,0 +1,246 @@
+"""The micro-buffer shared by every PBGI mode: its micro-pixel table, its storage and its batching.
+
+A micro-buffer is an M x M image of the receiver's upper hemisphere under the Nusselt projection
+Phi(x, y) = (x, y, sqrt(1 - x^2 - y^2)) (paper Section 5.2, Ritschel et al. 2009 Section 2.3),
+x, y in [-1, 1] along the receiver's frame (orthonormal_basis(N) in lib/principled.glsl).
+
+Micro-pixel table (computed here once per M, uploaded as ``vec4 (dir.xyz, weight)``):
+  * ``weight`` = area of (pixel square intersected with the unit disc) = the pixel's
+    *cosine-weighted* solid angle: integral of cos(theta) d omega over the pixel. Eq. 9's
+    Omega_ij (n . w_ij) is exactly this number, so the gather weights each micro-pixel by its own
+    solid angle (paper Section 5.3's correction) and pixels that straddle the horizon only count
+    their part above it. The weights sum to pi, so a constant radiance L and a Lambertian BRDF
+    a / pi gather to a * L exactly.
+  * ``dir`` = Phi of the centroid of that clipped area: the representative incoming direction,
+    always strictly above the horizon.
+  * ``solid_angle`` (kept on the CPU) = the pixel's plain solid angle; sums to 2 pi.
+
+Storage: one RG32UI texel per micro-pixel, (depth key, node index); empty = (0xffffffff,
+0xffffffff). The depth key is the depth's float bits with a coplanar tie-break in its low bits
+(lib/microbuffer.glsl). Keeping the node index rather than its colour halves the memory of an RGBA16F
+texel, and radiance is read from the float32 node record at gather time, so HDR values above the
+half-float limit (65504) cannot overflow. Non-negative floats order like their bit patterns, so a
+mode whose invocations race on one micro-buffer can depth-test the key with imageAtomicMin.
+
+Batching: a render's receivers (object pixels) are processed in batches whose micro-buffers fit a
+memory budget and the largest texture (one image row per receiver).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+MIN_SIZE, MAX_SIZE, DEFAULT_SIZE = 8, 32, 24
+ENTRY_BYTES = 8                     # RG32UI (depth key, node index)
+EMPTY = 0xFFFFFFFF                  # empty key and node
+
+
+def omega_micro(m: int) -> float:
+    """Eq. 5: the constant solid angle 2 pi / M^2 the stopping threshold is based on."""
+    return 2.0 * np.pi / (m * m)
+
+
+HORIZON_SPLIT = 4.0   # a micro-pixel spanning more than HORIZON_SPLIT / M radians of elevation
+MAX_SPLIT = 8         # ... is cut into that many elevation bands (at most MAX_SPLIT)
+
+
+def _region_integrals(x0, x1, y0, y1, r_in, r_out, samples):
+    """For regions [x0, x1] x [y0, y1] intersected with the annulus r_in <= r <= r_out (arrays
+    of shape (E,)): cosine-weighted solid angle (= projected area), its centroid (x, y), and
+    solid angle. The y integrals are analytic per x; x is a midpoint sum of ``samples`` nodes."""
+    t = (np.arange(samples) + 0.5) / samples
+    xs = x0[:, None] + (x1 - x0)[:, None] * t[None, :]                    # (E, S)
+    dx = ((x1 - x0) / samples)[:, None]
+    a1 = np.sqrt(np.maximum(1.0 - xs * xs, 0.0))                           # unit-disc half chord
+    a_in = np.sqrt(np.maximum(r_in[:, None] ** 2 - xs * xs, 0.0))
+    a_out = np.sqrt(np.maximum(r_out[:, None] ** 2 - xs * xs, 0.0))
+    area = mx = my = omega = 0.0
+    for lo_, hi_ in ((a_in, a_out), (-a_out, -a_in)):                     # y > 0 and y < 0 parts
+        lo = np.maximum(lo_, y0[:, None])
+        hi = np.minimum(hi_, y1[:, None])
+        ok = hi > lo
+        length = np.where(ok, hi - lo, 0.0)
+        area = area + (length * dx).sum(1)
+        mx = mx + (length * xs * dx).sum(1)
+        my = my + (np.where(ok, 0.5 * (hi * hi - lo * lo), 0.0) * dx).sum(1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ang = np.where(ok & (a1 > 0), np.arcsin(np.clip(hi / a1, -1, 1))
+                           - np.arcsin(np.clip(lo / a1, -1, 1)), 0.0)
+        omega = omega + (ang * dx).sum(1)
+    return area, mx, my, omega
+
+
+@lru_cache(maxsize=None)
+def micro_pixel_table(m: int, samples: int = 1024) -> dict:
+    """The micro-pixel table of an M x M micro-buffer.
+
+    Each grid pixel that meets the unit disc holds one or more *entries* (micro-buffer texels).
+    A pixel near the rim spans many degrees of elevation in the Nusselt projection (the outer
+    ring of a 16 x 16 buffer: from the horizon to ~28 degrees), so a single direction ray decides
+    all-or-nothing for a thin light just above the horizon - the edge micro-pixel then counts it
+    over its whole area, up to 2x too much (measured: 1.7x at M = 16 against the CPU reference).
+    Such a pixel is cut into bands of equal elevation, at most HORIZON_SPLIT / M radians each,
+    one entry per band, each with its own direction and weight.
+
+    Layout: entry k < M*M is band 0 (the one nearest the horizon) of grid pixel k = y * M + x -
+    pixels outside the disc keep a zero-weight entry, so a rasteriser that only knows the grid
+    still addresses valid texels - and the further bands of every split pixel follow from entry
+    M*M on, grouped by pixel in grid order.
+
+    Returns: dir (E, 3) unit centroid direction of the entry's region (cosine-weighted); weight
+    (E,) its cosine-weighted solid angle (sums to pi); solid_angle (E,) (sums to 2 pi); pixel
+    (E,) its grid pixel; extra_first, extra_count (M*M,) where a pixel's further bands start and
+    how many there are; prefix (M + 1, M + 1) the summed-area table of extra_count, so that a
+    rectangle's entry count is its area plus four look-ups (rect_entries); entries = E.
+    """
+    if not MIN_SIZE <= m <= MAX_SIZE:
+        raise ValueError(f"micro-buffer size must be in [{MIN_SIZE}, {MAX_SIZE}], got {m}")
+    e = np.linspace(-1.0, 1.0, m + 1)
+    gy, gx = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
+    x0, x1, y0, y1 = e[gx].ravel(), e[gx + 1].ravel(), e[gy].ravel(), e[gy + 1].ravel()
+    r_min = np.hypot(np.clip(0.0, x0, x1), np.clip(0.0, y0, y1))
+    r_max = np.minimum(1.0, np.hypot(np.maximum(np.abs(x0), np.abs(x1)),
+                                     np.maximum(np.abs(y0), np.abs(y1))))
+    e_lo, e_hi = np.arccos(r_max), np.arccos(np.minimum(r_min, 1.0))        # elevations
+    split = np.clip(np.ceil((e_hi - e_lo) / (HORIZON_SPLIT / m) - 1e-9), 1, MAX_SPLIT)
+    split = np.where(r_min < 1.0, split, 1).astype(np.int64)
+    pix = np.repeat(np.arange(m * m), split)
+    band = np.arange(len(pix)) - np.repeat(np.cumsum(split) - split, split)
+    n = split[pix]
+    r_in = np.where(band + 1 == n, r_min[pix],
+                    np.cos(e_lo[pix] + (e_hi - e_lo)[pix] * (band + 1) / n))
+    r_out = np.where(band == 0, 1.0, np.cos(e_lo[pix] + (e_hi - e_lo)[pix] * band / n))
+    area, mx, my, omega = _region_integrals(x0[pix], x1[pix], y0[pix], y1[pix],
+                                            np.minimum(r_in, 1.0), r_out, samples)
+    order = np.r_[np.flatnonzero(band == 0), np.flatnonzero(band > 0)]     # band 0 first
+    pix, area, mx, my, omega = pix[order], area[order], mx[order], my[order], omega[order]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cx = np.where(area > 0, mx / area, 0.0)
+        cy = np.where(area > 0, my / area, 0.0)
+    dirs = np.stack([cx, cy, np.sqrt(np.maximum(1.0 - cx * cx - cy * cy, 0.0))], axis=-1)
+    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+    extra_count = split - 1
+    extra_first = m * m + np.cumsum(extra_count) - extra_count
+    prefix = np.zeros((m + 1, m + 1), dtype=np.int64)
+    prefix[1:, 1:] = extra_count.reshape(m, m).cumsum(0).cumsum(1)
+    return {"dir": dirs, "weight": area, "solid_angle": omega, "pixel": pix,
+            "extra_first": extra_first, "extra_count": extra_count, "prefix": prefix,
+            "entries": len(pix)}
+
+
+def rect_entries(table: dict, x0: int, y0: int, x1: int, y1: int) -> int:
+    """Entries of the pixel rectangle [x0, x1] x [y0, y1] (inclusive)."""
+    p = table["prefix"]
+    extra = p[y1 + 1, x1 + 1] - p[y0, x1 + 1] - p[y1 + 1, x0] + p[y0, x0]
+    return int((x1 - x0 + 1) * (y1 - y0 + 1) + extra)
+
+
+def table_bytes(m: int) -> bytes:
+    t = micro_pixel_table(m)
+    return np.concatenate([t["dir"], t["weight"][:, None]], axis=1).astype("f4").tobytes()
+
+
+def entries(m: int) -> int:
+    """Micro-buffer texels per receiver for size M (M*M grid pixels plus the further
+    elevation bands of rim pixels: 1.15-1.35 x M*M)."""
+    return micro_pixel_table(m)["entries"]
+
+
+def bytes_per_receiver(m: int) -> int:
+    return entries(m) * ENTRY_BYTES
+
+
+def batch_size(m: int, budget_bytes: float, max_rows: int, n_receivers: int,
+               minimum: int = 64) -> int:
+    """Receivers per batch: as many micro-buffers as the budget allows (at least ``minimum``, so
+    a tiny budget still makes progress), one image row each, at most ``max_rows`` rows."""
+    fit = int(budget_bytes // bytes_per_receiver(m))
+    return int(max(1, min(max(fit, minimum), max_rows, max(n_receivers, 1))))
+
+
+_TABLES: dict = {}
+
+
+def table_texture(ctx, m: int):
+    """The entry table of size M as an (E, 1) RGBA32F texture (dir, weight), one per context
+    and M (texture unit 5 in lib/microbuffer.glsl)."""
+    import moderngl
+    key = (id(ctx), m, "table")
+    tex = _TABLES.get(key)
+    if tex is None:
+        tex = _TABLES[key] = ctx.texture((entries(m), 1), 4, table_bytes(m), dtype="f4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex
+
+
+def index_texture(ctx, m: int):
+    """(M + 1) x (M + 1) RGBA32UI, texel (x, y): (first further band of pixel (x, y), number of
+    further bands, summed-area prefix of those numbers, 0) - texture unit 6."""
+    import moderngl
+    key = (id(ctx), m, "index")
+    tex = _TABLES.get(key)
+    if tex is None:
+        t = micro_pixel_table(m)
+        data = np.zeros((m + 1, m + 1, 4), dtype="u4")
+        data[:m, :m, 0] = t["extra_first"].reshape(m, m)
+        data[:m, :m, 1] = t["extra_count"].reshape(m, m)
+        data[:, :, 2] = t["prefix"]
+        tex = _TABLES[key] = ctx.texture((m + 1, m + 1), 4, data.tobytes(), dtype="u4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex
+
+
+class MicroBuffers:
+    """The GPU storage of one batch of micro-buffers: an RG32UI image, one row per receiver,
+    one texel per micro-pixel (see lib/microbuffer.glsl). Reused across batches and frames."""
+
+    def __init__(self, ctx):
+        from app.render.programs import load_compute
+        self.ctx = ctx
+        self.image = None
+        self.m = 0
+        self.rows = 0
+        self.table = self.index = None
+        self._clear = load_compute(ctx, "mb_clear.glsl")
+
+    def prepare(self, m: int, capacity: int, receivers: int | None = None) -> None:
+        """Storage for ``capacity`` micro-buffers of size M (kept while M and the capacity
+        stay the same), the first ``receivers`` (default all) of them emptied."""
+        receivers = capacity if receivers is None else receivers
+        width = entries(m)
+        if self.image is None or self.m != m or self.rows != capacity:
+            if self.image is not None:
+                self.image.release()
+            self.image = self.ctx.texture((width, capacity), 2, dtype="u4")
+            self.m, self.rows = m, capacity
+        self.table = table_texture(self.ctx, m)
+        self.index = index_texture(self.ctx, m)
+        self.bind()
+        self._clear["u_width"] = width
+        self._clear["u_count"] = receivers
+        self._clear.run((width + 63) // 64, receivers)
+        self.ctx.memory_barrier()
+
+    def bind(self, image_unit: int = 0, table_unit: int = 5, index_unit: int = 6) -> None:
+        self.image.bind_to_image(image_unit, read=True, write=True)
+        self.table.use(location=table_unit)
+        self.index.use(location=index_unit)
+
+    def read(self, receivers: int) -> np.ndarray:
+        """(receivers, E, 2) uint32 (depth key, node index) - for tests and debugging."""
+        raw = np.frombuffer(self.image.read(), dtype=np.uint32)
+        return raw.reshape(self.rows, entries(self.m), 2)[:receivers]
+
+    @property
+    def nbytes(self) -> int:
+        if self.image is None:
+            return 0
+        return entries(self.m) * (self.rows * ENTRY_BYTES + 16) + 16 * (self.m + 1) ** 2
+
+    def release(self) -> None:
+        if self.image is not None:
+            self.image.release()
+        self.image = self.table = self.index = None
+        self.m = self.rows = 0

@@ -1,0 +1,103 @@
+"""``scanlight bench expand``: HDR expansion of a 1M-point room from one capture position.
+
+The cloud is the synthetic room (app.demo.room.room_cloud) scanned to LDR with the scanner's
+auto exposure; the photo is the demo's ray-cast HDR photo; one cube map of 6 x 1024^2 at the demo
+capture position. Set-up (generating the scene) is not timed. Records: case.points, case.method,
+metrics.seconds_total and one metrics.seconds_<stage> per stage, plus the point RMS on the
+overexposed points against the ground truth (and the LDR cloud's, for scale).
+
+``--poisson-stress`` adds the Poisson solver comparison on a large Omega: every overexposed
+point of the cloud is treated as unknown (as if no rendering had seen it; boundary values 3x the
+LDR colour), for both solvers.
+"""
+
+from __future__ import annotations
+
+import time
+
+
+from app.bench.records import record
+
+BENCH = "expand"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--points", type=int, default=1_000_000, help="cloud size (1000000)")
+    parser.add_argument("--face-size", type=int, default=1024, help="cube-map face size (1024)")
+    parser.add_argument("--methods", default="pmatch-rgb",
+                        help="comma-separated methods, or 'all' (default pmatch-rgb)")
+    parser.add_argument("--solver", default="auto", choices=("auto", "cg", "direct"),
+                        help="Poisson solver (auto)")
+    parser.add_argument("--poisson-stress", action="store_true",
+                        help="also time both Poisson solvers with Omega = all overexposed points")
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def scene(points: int, seed: int = 0):
+    from app.demo.room import (CAPTURE_POSITIONS, PHOTO_CAMERA, ldr_scan, render_photo,
+                               room_cloud, scan_exposure)
+    gt = room_cloud(points, seed)
+    alpha = scan_exposure(gt)
+    return gt, ldr_scan(gt, alpha), alpha, render_photo(PHOTO_CAMERA), CAPTURE_POSITIONS
+
+
+def run(args) -> list[dict]:
+    from app.errors import UsageError
+    from app.hdr.evaluate import expansion_errors
+    from app.hdr.pipeline import METHODS, STAGES, ExpandParams, run_expansion
+
+    methods = list(METHODS) if args.methods == "all" else args.methods.split(",")
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        raise UsageError(None, f"unknown method(s) {', '.join(bad)} (known: {', '.join(METHODS)})")
+    if args.points < 1000:
+        raise UsageError(None, "--points must be at least 1000")
+    gt, ldr, alpha, photo, positions = scene(args.points, args.seed)
+    records = []
+    for method in methods:
+        params = ExpandParams(face_size=args.face_size, poisson_solver=args.solver, seed=args.seed)
+        t0 = time.perf_counter()
+        res = run_expansion(ldr, photo, positions, method, params)
+        wall = time.perf_counter() - t0
+        rep = res.report
+        err = expansion_errors(res.cloud, gt, ldr, params.tl, exposure=alpha)
+        metrics = {"seconds_total": wall}
+        for s in STAGES:
+            metrics[f"seconds_{s}"] = rep["timings"].get(f"seconds_{s}", 0.0)
+        metrics.update({"rms_overexposed": err["rms_overexposed"],
+                        "ldr_rms_overexposed": err["ldr_rms_overexposed"],
+                        "alpha_error_pct": 100.0 * (rep["alpha"] / alpha - 1.0),
+                        "overexposed": rep["counts"]["overexposed"],
+                        "poisson_points": rep["counts"]["filled_by_poisson"]})
+        case = {"points": len(ldr), "method": method, "face_size": args.face_size,
+                "faces_rendered": rep.get("capture", {}).get("faces_rendered", 0)}
+        records.append(record(BENCH, case, metrics))
+    if args.poisson_stress:
+        records += _poisson_stress(ldr, args.points)
+    return records
+
+
+def _poisson_stress(ldr, points: int) -> list[dict]:
+    from scipy.spatial import cKDTree
+
+    from app.color import luminance
+    from app.hdr.poisson import poisson_fill
+
+    y = luminance(ldr.colors)
+    omega = y > 0.9
+    # boundary values brighter than the guidance, so the solve has to carry them inwards
+    values = 3.0 * ldr.colors
+    t0 = time.perf_counter()
+    tree = cKDTree(ldr.positions)
+    t_tree = time.perf_counter() - t0
+    out = []
+    for solver in ("cg", "direct"):
+        t0 = time.perf_counter()
+        res = poisson_fill(ldr.positions, ldr.colors, values, omega, 16, tree, solver)
+        dt = time.perf_counter() - t0
+        out.append(record(BENCH, {"points": points, "method": f"poisson-{solver}",
+                                  "omega": int(omega.sum())},
+                          {"seconds_total": dt + t_tree, "seconds_kdtree": t_tree,
+                           "seconds_poisson": dt, "cg_iterations": res.iterations,
+                           "filled": int(res.filled.sum())}))
+    return out

@@ -1,0 +1,105 @@
+"""A test scene made from a real HDR panorama (../shared/data/*.exr, see its README).
+
+The panorama is mapped onto a box room around the capture centre: every wall point gets the
+panorama's radiance in its direction from the centre (that is the ground truth). The LDR scan
+clips it at an exposure that saturates the brightest few percent; a rectilinear crop of the
+panorama with its own yaw, pitch and field of view is the unregistered HDR photo. The capture
+position is off the centre, so the cube-map renderings see the walls with a parallax the photo
+does not have: the matching is not a pure rotation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.camera import Camera
+from app.cloud import PointCloud
+from app.color import luminance
+from app.demo.room import DemoScene, ldr_scan
+
+ROOM_MIN = np.array([-2.0, 0.0, -2.0])
+ROOM_MAX = np.array([2.0, 2.8, 2.0])
+CENTRE = np.array([0.0, 1.4, 0.0])
+
+
+def direction_to_uv(d: np.ndarray, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """Equirectangular pixel coordinates (pixel-centre convention) of unit directions; -z is the
+    panorama's centre column, +y its top row."""
+    lon = np.arctan2(d[:, 0], -d[:, 2])
+    lat = np.arcsin(np.clip(d[:, 1], -1, 1))
+    return (lon / (2 * np.pi) + 0.5) * w - 0.5, (0.5 - lat / np.pi) * h - 0.5
+
+
+def sample_panorama(pano: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Bilinear lookup with horizontal wrap-around."""
+    h, w = pano.shape[:2]
+    x, y = direction_to_uv(d / np.linalg.norm(d, axis=1, keepdims=True), w, h)
+    y = np.clip(y, 0, h - 1)
+    x0 = np.floor(x).astype(np.int64)
+    y0 = np.minimum(np.floor(y).astype(np.int64), h - 2)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    x0, x1 = x0 % w, (x0 + 1) % w
+    top = pano[y0, x0] * (1 - fx) + pano[y0, x1] * fx
+    bot = pano[y0 + 1, x0] * (1 - fx) + pano[y0 + 1, x1] * fx
+    return (top * (1 - fy) + bot * fy).astype(np.float32)
+
+
+def box_points(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Area-uniform points on the inside of the room box, normals facing in."""
+    rng = np.random.default_rng(seed)
+    size = ROOM_MAX - ROOM_MIN
+    faces = []  # (axis, value, inward normal sign)
+    for axis in range(3):
+        faces += [(axis, ROOM_MIN[axis], 1.0), (axis, ROOM_MAX[axis], -1.0)]
+    areas = np.array([np.prod(np.delete(size, a)) for a, _, _ in faces])
+    counts = rng.multinomial(n, areas / areas.sum())
+    pos, nrm = [], []
+    for (axis, val, sign), c in zip(faces, counts):
+        p = ROOM_MIN + rng.random((c, 3)) * size
+        p[:, axis] = val
+        nn = np.zeros((c, 3))
+        nn[:, axis] = sign
+        pos.append(p)
+        nrm.append(nn)
+    return np.concatenate(pos), np.concatenate(nrm).astype(np.float32)
+
+
+def brightest_direction(pano: np.ndarray) -> np.ndarray:
+    """Unit direction of the panorama's brightest (smoothed) region."""
+    from scipy.ndimage import uniform_filter
+
+    h, w = pano.shape[:2]
+    y = uniform_filter(luminance(pano), size=5, mode="wrap")
+    i, j = np.unravel_index(np.argmax(y), y.shape)
+    lon = ((j + 0.5) / w - 0.5) * 2 * np.pi
+    lat = (0.5 - (i + 0.5) / h) * np.pi
+    return np.array([np.cos(lat) * np.sin(lon), np.sin(lat), -np.cos(lat) * np.cos(lon)])
+
+
+def panorama_scene(pano: np.ndarray, n_points: int = 50_000, seed: int = 0,
+                   photo_offset_deg: tuple[float, float] = (20.0, -10.0), photo_fov: float = 75.0,
+                   photo_size: tuple[int, int] = (384, 256),
+                   capture_offset=(0.35, -0.15, 0.25), clip_percentile: float = 97.0) -> DemoScene:
+    """The scene; the photo looks ``photo_offset_deg`` (yaw, pitch) away from the brightest
+    region of the panorama, so its lights are in frame but not centred."""
+    pano = np.asarray(pano, dtype=np.float32)
+    pos, nrm = box_points(n_points, seed)
+    gt_cols = sample_panorama(pano, pos - CENTRE)
+    gt = PointCloud(pos, nrm, gt_cols, hdr=True, source="panorama-room")
+    y = luminance(gt_cols)
+    alpha = float(1.0 / max(np.percentile(y, clip_percentile), 1e-6))
+    ldr = ldr_scan(gt, alpha)
+    d = brightest_direction(pano)
+    yaw, pitch = np.radians(photo_offset_deg)
+    # rotate the look direction by yaw about +y, then tilt by pitch
+    c, s = np.cos(yaw), np.sin(yaw)
+    d = np.array([c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]])
+    lat = np.clip(np.arcsin(np.clip(d[1], -1, 1)) + pitch, -1.2, 1.2)
+    hz = d[[0, 2]] / max(np.linalg.norm(d[[0, 2]]), 1e-9)
+    look = np.array([np.cos(lat) * hz[0], np.sin(lat), np.cos(lat) * hz[1]])
+    cam = Camera(CENTRE, CENTRE + look, fov_y_deg=photo_fov, width=photo_size[0],
+                 height=photo_size[1])
+    _, rays = cam.pixel_rays()
+    photo = sample_panorama(pano, rays.reshape(-1, 3)).reshape(cam.height, cam.width, 3)
+    capture = tuple(float(x) for x in CENTRE + np.asarray(capture_offset))
+    return DemoScene(gt, ldr, alpha, photo, cam, (capture,))

@@ -1,0 +1,496 @@
+"""HDR expansion of an LDR point cloud from one unregistered HDR photo (paper Section 4).
+
+Stages, each a function of the previous stage's output:
+    linearise -> capture (cube maps of the cloud) -> exposure (eq. 1) -> expand (ITMO or
+    PatchMatch per rendering, or ITMO per point) -> project (back to the points, depth-tested)
+    -> poisson (eqs. 2-3, fills what no rendering could give).
+The output cloud is on the LDR scan's scale: well-exposed points keep their colour, expanded
+points get alpha times the photo's radiance, so the two meet at the clipping threshold.
+
+Everything is in memory (arrays in, arrays out); files are app.hdr.commands' business. Progress
+is reported as (fraction, stage) with a non-decreasing fraction; ``cancel`` (anything with
+``is_set()``) is checked between chunks and raises app.jobs.Cancelled.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from app.camera import Camera, CUBE_FACES, cube_cameras
+from app.cloud import PointCloud
+from app.color import luminance
+from app.errors import ScanlightError
+from app.hdr import itmo
+from app.hdr.capture import point_spacing, project, splat_face
+from app.hdr.exposure import find_exposure
+from app.hdr.matching import match_faces
+from app.hdr.poisson import poisson_fill
+from app.hdr.project import match_samples, project_to_points, transfer
+from app.hdr.result import (LABEL_NAMES, POISSON, PROJECTED, UNCHANGED,  # noqa: F401
+                             UNRESOLVED, Expansion)
+from app.io.clean import clean_rgb, describe_counts
+from app.jobs import Cancelled
+
+METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
+STAGES = ("linearise", "capture", "exposure", "expand", "project", "poisson")
+_WEIGHTS = {"linearise": 0.02, "capture": 0.25, "exposure": 0.05, "expand": 0.43,
+            "project": 0.1, "poisson": 0.15}
+
+
+@dataclass(frozen=True)
+class ExpandParams:
+    """All thresholds, with the paper's defaults where it gives them."""
+
+    tl: float = 0.9                 # overexposed: LDR luminance above this
+    th: float = 1.0                 # PatchMatch: reject samples with SSD above this (7x7 SSD)
+    k: int = 16                     # Poisson k-NN graph
+    bins: int = 128                 # exposure histograms
+    exposure_iters: int = 50        # exposure bisection limit
+    exposure_include_clipped: bool = False  # see app.hdr.exposure
+    exposure: float | None = None   # skip the search, use this alpha
+    face_size: int = 1024           # cube-map face resolution
+    splat_scale: float = 1.0        # splat radius / point spacing
+    pm_face_size: int = 128         # PatchMatch works on faces box-downsampled to this
+    pm_photo_size: int = 256        # ... and on the photo box-downsampled to this
+    pm_patch_radius: int = 3        # 7x7 patches
+    pm_iterations: int = 4          # per pyramid level
+    pm_levels: int = 3
+    pm_scale_range: tuple = (0.25, 4.0)
+    pm_match: str = "rgb"           # match on "rgb" or "luminance" (what is transferred is the
+                                    # method's: pmatch-rgb colour, pmatch-lum luminance)
+    pm_scale_tolerance: float | None = 0.75  # octaves a match's scale may stray from the
+                                             # common one (None: no check)
+    good_match_ssd: float = 0.02    # x th: a textured pixel matched this well is a "close match"
+    good_match_min: float = 0.02    # warn (another scene?) when fewer textured pixels match closely
+    landis_threshold: float | None = None  # None: tl
+    landis_exponent: float = 2.0
+    l_max_percentile: float = 99.9  # ITMO peak: this percentile of the photo's luminance
+    poisson_solver: str = "auto"    # "direct" (sparse LU), "cg", or "auto" (see app.hdr.poisson)
+    seed: int = 0
+
+    @staticmethod
+    def from_dict(d: dict) -> "ExpandParams":
+        known = {f for f in ExpandParams.__dataclass_fields__}
+        bad = sorted(set(d) - known)
+        if bad:
+            raise ScanlightError(None, f"unknown expansion parameter(s): {', '.join(bad)}")
+        d = dict(d)
+        if "pm_scale_range" in d:
+            d["pm_scale_range"] = tuple(d["pm_scale_range"])
+        try:
+            return ExpandParams(**d).validated()
+        except TypeError as exc:
+            raise ScanlightError(None, f"bad expansion parameters ({exc})") from None
+
+    def validated(self) -> "ExpandParams":
+        """self, or a ScanlightError naming the first parameter out of range."""
+        checks = [("tl", 0 < self.tl < 1, "in (0, 1)"), ("th", self.th > 0, "positive"),
+                  ("k", 1 <= self.k <= 256, "in [1, 256]"), ("bins", 2 <= self.bins <= 65536,
+                                                             "in [2, 65536]"),
+                  ("exposure_iters", self.exposure_iters >= 0, ">= 0"),
+                  ("face_size", 16 <= self.face_size <= 8192, "in [16, 8192]"),
+                  ("splat_scale", self.splat_scale > 0, "positive"),
+                  ("pm_face_size", 16 <= self.pm_face_size <= 4096, "in [16, 4096]"),
+                  ("pm_photo_size", 16 <= self.pm_photo_size <= 4096, "in [16, 4096]"),
+                  ("pm_patch_radius", 1 <= self.pm_patch_radius <= 8, "in [1, 8]"),
+                  ("pm_iterations", 1 <= self.pm_iterations <= 100, "in [1, 100]"),
+                  ("pm_levels", 1 <= self.pm_levels <= 8, "in [1, 8]"),
+                  ("pm_match", self.pm_match in ("rgb", "luminance"), "'rgb' or 'luminance'"),
+                  ("poisson_solver", self.poisson_solver in ("auto", "cg", "direct"),
+                   "'auto', 'cg' or 'direct'"),
+                  ("l_max_percentile", 50 <= self.l_max_percentile <= 100, "in [50, 100]")]
+        lo, hi = self.pm_scale_range
+        checks.append(("pm_scale_range", 0 < lo < hi, "two increasing positive numbers"))
+        if self.exposure is not None:
+            checks.append(("exposure", np.isfinite(self.exposure) and self.exposure > 0,
+                           "a positive number"))
+        for name, ok, what in checks:
+            if not ok:
+                raise ScanlightError(None, f"expansion parameter {name} must be {what}, got "
+                                           f"{getattr(self, name)!r}")
+        return self
+
+
+class _Progress:
+    """Maps per-stage fractions to one non-decreasing overall fraction."""
+
+    def __init__(self, cb, stages):
+        self.cb = cb
+        total = sum(_WEIGHTS[s] for s in stages)
+        self.start, acc = {}, 0.0
+        for s in stages:
+            self.start[s] = acc / total
+            acc += _WEIGHTS[s]
+        self.span = {s: _WEIGHTS[s] / total for s in stages}
+        self.last = 0.0
+
+    def __call__(self, stage: str, frac: float = 0.0):
+        if self.cb is None:
+            return
+        f = self.start[stage] + self.span[stage] * min(max(frac, 0.0), 1.0)
+        self.last = max(self.last, f)
+        self.cb(self.last, stage)
+
+    def done(self):
+        if self.cb is not None:
+            self.last = 1.0
+            self.cb(1.0, "done")
+
+
+def _checker(cancel):
+    def check():
+        if cancel is not None and cancel.is_set():
+            raise Cancelled("expansion cancelled")
+    return check
+
+
+def _name(names, key):
+    return (names or {}).get(key) or key
+
+
+def validate_photo(photo, names=None) -> tuple[np.ndarray, list[str]]:
+    """The photo as finite, non-negative float32 (H, W, 3), or a ScanlightError if it is useless."""
+    src = _name(names, "photo")
+    a = np.asarray(photo)
+    if a.ndim == 2:
+        a = np.repeat(a[..., None], 3, axis=2)
+    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 8 or a.shape[1] < 8:
+        raise ScanlightError(src, "photo must be an RGB image of at least 8x8 pixels, got "
+                                  f"shape {a.shape}")
+    rgb, counts = clean_rgb(a, "pixels")
+    warnings = []
+    if any(counts.values()):
+        warnings.append(f"photo: {describe_counts(counts)}")
+    y = luminance(rgb)
+    if not np.any(y > 0):
+        raise ScanlightError(src, "photo is all black: it holds no light to expand the cloud with")
+    lo, hi = np.percentile(y, [0.1, 99.9])
+    if hi <= lo * 1.001 and float(y.max()) <= float(y.min()) * 1.001:
+        raise ScanlightError(src, f"photo is uniform (every pixel has luminance {hi:.4g}): it has "
+                                  "no dynamic range to expand the cloud with")
+    if float(rgb.max()) <= 1.0 and np.mean(rgb.max(axis=2) >= 0.999) > 0.01:
+        warnings.append("photo never exceeds 1.0 and has clipped pixels: it looks LDR, so the "
+                        "expansion cannot recover radiance above its clipping point")
+    return rgb, warnings
+
+
+def normalise_cameras(capture_cameras, names=None) -> list:
+    """Capture cameras as a list of positions (cube maps) and Camera objects (single views)."""
+    src = _name(names, "cameras")
+    items = list(capture_cameras) if capture_cameras is not None else []
+    if not items:
+        raise ScanlightError(src, "no capture camera given")
+    out = []
+    for i, c in enumerate(items):
+        if isinstance(c, Camera):
+            out.append(c)
+            continue
+        p = np.asarray(c, dtype=np.float64)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ScanlightError(src, f"capture camera {i}: position must be 3 finite numbers")
+        out.append(p)
+    return out
+
+
+def _capture_faces(cloud, cams, params, prog, check, overexposed, report):
+    """Splat the faces that can see an overexposed point (the others are never used)."""
+    radius = params.splat_scale * point_spacing(cloud.positions)
+    jobs = []
+    for ci, c in enumerate(cams):
+        if isinstance(c, Camera):
+            jobs.append((ci, f"view{ci}", c))
+        else:
+            for (name, _, _), cam in zip(CUBE_FACES, cube_cameras(c, params.face_size)):
+                jobs.append((ci, name, cam))
+    hot = cloud.positions[overexposed]
+    faces, stats = [], []
+    skipped = 0
+    for j, (ci, name, cam) in enumerate(jobs):
+        check()
+        u, v, z = project(cam, hot)
+        if not np.any((z > 0) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)):
+            skipped += 1
+            prog("capture", (j + 1) / len(jobs))
+            continue
+        face, st = splat_face(cam, cloud.positions, cloud.normals, cloud.colors, radius,
+                              cancel=check, name=f"{ci}:{name}")
+        faces.append(face)
+        stats.append((ci, st))
+        prog("capture", (j + 1) / len(jobs))
+    lo, hi = cloud.bounds()
+    per_cam = []
+    for ci, c in enumerate(cams):
+        pos = c.position if isinstance(c, Camera) else c
+        st = [s for i, s in stats if i == ci]
+        cov = [s["coverage"] for s in st]
+        back = max([s["back_view_fraction"] for s in st], default=0.0)
+        entry = {"position": [float(x) for x in pos], "faces_rendered": len(st),
+                 "coverage": float(np.mean(cov)) if cov else 0.0,
+                 "min_face_coverage": float(min(cov)) if cov else 0.0,
+                 "back_view_fraction": float(back)}
+        per_cam.append(entry)
+        where = f"capture camera {ci} at ({', '.join(f'{x:.3g}' for x in pos)})"
+        if np.any(pos < lo) or np.any(pos > hi):
+            report["warnings"].append(f"{where} is outside the cloud's bounding box")
+        if back > 0.2:
+            report["warnings"].append(f"{where} sees surfaces from behind ({back:.0%} of a face): "
+                                      "is it inside a wall or an object, or outside the room?")
+        if cov and min(cov) < 0.1:
+            report["warnings"].append(f"{where}: a face of its cube map sees almost no point "
+                                      f"({min(cov):.0%} covered): is it inside a wall?")
+    report["capture"] = {"splat_radius": radius, "faces_rendered": len(faces),
+                         "faces_skipped": skipped, "cameras": per_cam}
+    return faces
+
+
+def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "pmatch-rgb",
+                  params: ExpandParams | None = None, progress=None, cancel=None,
+                  names: dict | None = None) -> Expansion:
+    """The whole pipeline; see expand_cloud for the short form."""
+    params = (params or ExpandParams()).validated()
+    if method not in METHODS:
+        raise ScanlightError(None, f"unknown expansion method {method!r} "
+                                   f"(known: {', '.join(METHODS)})")
+    check = _checker(cancel)
+    t_all = time.perf_counter()
+    timings = {}
+    report = {"method": method, "params": _jsonable(asdict(params)), "warnings": [],
+              "units": "ldr-scan: expanded colours are alpha x photo radiance"}
+    per_point = method.endswith("-pc")
+    stages = [s for s in STAGES if not (per_point and s in ("capture", "project"))]
+    prog = _Progress(progress, stages)
+
+    # -- linearise ------------------------------------------------------------------------------
+    t = time.perf_counter()
+    prog("linearise", 0.0)
+    n = len(ldr_cloud)
+    if n == 0:
+        raise ScanlightError(_name(names, "cloud"), "the cloud has no points")
+    if not np.all(np.isfinite(ldr_cloud.positions)):
+        raise ScanlightError(_name(names, "cloud"), "the cloud has non-finite positions")
+    if ldr_cloud.hdr:
+        report["warnings"].append("the input cloud is marked HDR; it is treated as an LDR scan "
+                                  "(values clipped to [0, 1])")
+    ldr_rgb, counts = clean_rgb(ldr_cloud.colors, "colors")
+    ldr_rgb = np.clip(ldr_rgb, 0.0, 1.0)  # colours are sRGB-decoded 8-bit: linear [0, 1]
+    cloud = PointCloud(ldr_cloud.positions, ldr_cloud.normals, ldr_rgb, False, ldr_cloud.source)
+    photo_rgb, pw = validate_photo(photo, names)
+    report["warnings"] += pw
+    cams = normalise_cameras(capture_cameras, names)
+    y_ldr = luminance(ldr_rgb)
+    over = y_ldr > params.tl
+    labels = np.zeros(n, dtype=np.uint8)
+    timings["linearise"] = time.perf_counter() - t
+    prog("linearise", 1.0)
+
+    def finish(colors, alpha=None, faces=()):
+        timings["total"] = time.perf_counter() - t_all
+        report["alpha"] = alpha
+        report["counts"] = {"points": int(n), "overexposed": int(over.sum()),
+                            **{LABEL_NAMES[k]: int((labels == k).sum()) for k in LABEL_NAMES}}
+        report["timings"] = {f"seconds_{k}": float(v) for k, v in timings.items()}
+        out = PointCloud(cloud.positions, cloud.normals, colors, True,
+                         f"expanded:{ldr_cloud.source or 'cloud'}",
+                         {"expansion": {k: report[k] for k in ("method", "alpha", "counts")}})
+        prog.done()
+        return Expansion(out, report, labels, list(faces))
+
+    if not over.any():
+        report["warnings"].append(f"no overexposed points (LDR luminance > {params.tl}): nothing "
+                                  "to expand; the output is the input")
+        report["nothing_to_do"] = True
+        return finish(ldr_rgb.copy())
+
+    # -- capture --------------------------------------------------------------------------------
+    faces = []
+    if not per_point:
+        t = time.perf_counter()
+        prog("capture", 0.0)
+        faces = _capture_faces(cloud, cams, params, prog, check, over, report)
+        timings["capture"] = time.perf_counter() - t
+
+    # -- exposure -------------------------------------------------------------------------------
+    t = time.perf_counter()
+    prog("exposure", 0.0)
+    if params.exposure is not None:
+        alpha = float(params.exposure)
+        report["exposure"] = {"alpha": alpha, "source": "given"}
+    else:
+        ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.exposure_iters,
+                           include_clipped=params.exposure_include_clipped, cancel=check)
+        if not np.isfinite(ex.distance):
+            ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.exposure_iters,
+                               include_clipped=True, cancel=check)
+        alpha = ex.alpha
+        report["exposure"] = {"alpha": alpha, "source": "search", "wasserstein": ex.distance,
+                              "iterations": ex.iterations}
+        if ex.distance > 0.1:
+            report["warnings"].append(f"the photo's luminance distribution matches the cloud's "
+                                      f"poorly (Wasserstein {ex.distance:.3f} at alpha "
+                                      f"{alpha:.4g}): is it a photo of the same scene?")
+    photo_ldr = np.clip(alpha * photo_rgb, 0.0, 1.0)
+    y_photo = luminance(photo_rgb)
+    l_max = float(alpha * np.percentile(y_photo, params.l_max_percentile))
+    if l_max <= params.tl:
+        report["warnings"].append(f"at the matched exposure the photo peaks at {l_max:.3g} "
+                                  f"(<= tl = {params.tl}): it adds no range above the scan's")
+    l_max = max(l_max, 1.0)
+    report["l_max"] = l_max
+    timings["exposure"] = time.perf_counter() - t
+    prog("exposure", 1.0)
+
+    # -- expand ---------------------------------------------------------------------------------
+    t = time.perf_counter()
+    prog("expand", 0.0)
+    threshold = params.tl if params.landis_threshold is None else params.landis_threshold
+    hdr = ldr_rgb.astype(np.float32).copy()
+    values = np.zeros((n, 3), dtype=np.float32)
+    has_value = np.zeros(n, dtype=bool)
+    tree = None
+    lum_only = method != "pmatch-rgb"
+    if per_point:
+        idx = np.flatnonzero(over)
+        nbr = None
+        if method == "banterle-pc":
+            tree = cKDTree(cloud.positions)
+            check()
+            # the bright points and their k-NN (the expand map is non-zero only around them)
+            _, nb = tree.query(cloud.positions[idx], params.k + 1, workers=-1)
+            region = np.unique(np.concatenate([idx, nb.ravel()]))
+            region = region[region < n]
+            _, nbr_g = tree.query(cloud.positions[region], params.k + 1, workers=-1)
+            loc = np.full(n + 1, -1, dtype=np.int64)
+            loc[region] = np.arange(len(region))
+            nbr = loc[np.minimum(nbr_g[:, 1:], n)]
+            exp = itmo.expand_points(ldr_rgb[region], "banterle-pc", l_max, threshold, nbr,
+                                     params.landis_exponent)
+            values[region] = exp
+        else:
+            values[idx] = itmo.expand_points(ldr_rgb[idx], "landis-pc", l_max, threshold,
+                                             exponent=params.landis_exponent)
+        has_value[idx] = True
+        prog("expand", 1.0)
+    elif method in ("landis", "banterle"):
+        expanded = []
+        for fi, face in enumerate(faces):
+            check()
+            expanded.append(itmo.expand_face(face.color, method, l_max, threshold,
+                                             params.landis_exponent))
+            prog("expand", (fi + 1) / max(len(faces), 1))
+
+        def sampler(fi, u, v, ldr_pts):
+            img = expanded[fi]
+            h, w = img.shape[:2]
+            iu = np.clip(u.astype(np.int64), 0, w - 1)
+            iv = np.clip(v.astype(np.int64), 0, h - 1)
+            return transfer(img[iv, iu], ldr_pts, True), None
+    else:
+        matches = match_faces(faces, photo_ldr, params, check,
+                              lambda f: prog("expand", f), report)
+
+        def sampler(fi, u, v, ldr_pts):
+            rgb, ssd = match_samples(matches[fi], photo_rgb, u, v)
+            return transfer(alpha * rgb, ldr_pts, lum_only), ssd
+    timings["expand"] = time.perf_counter() - t
+    prog("expand", 1.0)
+
+    # -- project --------------------------------------------------------------------------------
+    if not per_point:
+        t = time.perf_counter()
+        prog("project", 0.0)
+        targets = np.flatnonzero(over)
+        pj = project_to_points(cloud.positions, ldr_rgb, targets, faces, sampler,
+                               params.th if method.startswith("pmatch") else None, cancel=check)
+        values, has_value = pj.values, pj.has_value
+        report["projection"] = {"overexposed_seen": int(pj.seen.sum()),
+                                "samples_accepted": pj.samples, "samples_rejected": pj.rejected}
+        if method.startswith("pmatch") and len(pj.ssd):
+            fin = pj.ssd[np.isfinite(pj.ssd)]
+            med = float(np.median(fin)) if len(fin) else None
+            rej = pj.rejected / max(pj.rejected + pj.samples, 1)
+            report["match"].update({"median_ssd": med, "rejected_fraction": rej})
+            if report["match"]["close_match_fraction"] < params.good_match_min:
+                report["low_match_quality"] = True
+                report["warnings"].append(
+                    f"low match quality: only {report['match']['close_match_fraction']:.1%} of "
+                    "the renderings' textured patches have a close match in the photo; the photo "
+                    f"may show another scene. {rej:.0%} of the projected samples were rejected "
+                    "and filled by Poisson editing from their neighbours")
+        seen = int(pj.seen.sum())
+        if seen == 0:
+            report["warnings"].append("no capture camera sees an overexposed point: every "
+                                      "overexposed point is left to Poisson editing")
+        elif seen < 0.75 * len(targets):
+            report["warnings"].append(f"{1 - seen / len(targets):.0%} of the overexposed points "
+                                      "are seen by no capture camera (left to Poisson editing): "
+                                      "add a capture position that faces them")
+        timings["project"] = time.perf_counter() - t
+        prog("project", 1.0)
+
+    got = over & has_value
+    hdr[got] = np.maximum(values[got], 0.0)
+    labels[got] = PROJECTED
+
+    # -- poisson --------------------------------------------------------------------------------
+    t = time.perf_counter()
+    prog("poisson", 0.0)
+    omega = over & ~has_value
+    report["poisson"] = {"omega": int(omega.sum())}
+    if omega.any():
+        if tree is None:
+            tree = cKDTree(cloud.positions)
+        check()
+        prog("poisson", 0.3)
+        if lum_only:
+            res = poisson_fill(cloud.positions, y_ldr, luminance(hdr), omega, params.k, tree,
+                               params.poisson_solver, cancel=check)
+            filled_rgb = itmo.rescale_luminance(ldr_rgb[omega], res.values[omega, 0])
+        else:
+            res = poisson_fill(cloud.positions, ldr_rgb, hdr, omega, params.k, tree,
+                               params.poisson_solver, cancel=check)
+            filled_rgb = res.values[omega]
+        hdr[omega] = np.maximum(filled_rgb, 0.0)
+        labels[res.filled] = POISSON
+        labels[res.unresolved] = UNRESOLVED
+        hdr[res.unresolved] = ldr_rgb[res.unresolved]
+        report["poisson"].update({"components": res.components, "cg_iterations": res.iterations,
+                                  "solver": params.poisson_solver})
+        if res.unresolved.any():
+            report["warnings"].append(f"{int(res.unresolved.sum())} overexposed points lie in "
+                                      "regions with no expanded neighbour at all: they keep their "
+                                      "LDR colour")
+    timings["poisson"] = time.perf_counter() - t
+    prog("poisson", 1.0)
+
+    # an overexposed point's true value cannot be darker than its clipped measurement
+    y_h = luminance(hdr)
+    low = over & (y_h < y_ldr) & (labels != UNRESOLVED)
+    if low.any():
+        hdr[low] = itmo.rescale_luminance(hdr[low], y_ldr[low].astype(np.float64))
+    if not np.all(np.isfinite(hdr)):  # never expected; never let it out either
+        bad = ~np.all(np.isfinite(hdr), axis=1)
+        hdr[bad] = ldr_rgb[bad]
+        report["warnings"].append(f"{int(bad.sum())} non-finite expanded colours replaced by LDR")
+    return finish(hdr, alpha, faces)
+
+
+def expand_cloud(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "pmatch-rgb",
+                 params: ExpandParams | None = None, progress=None, cancel=None,
+                 names: dict | None = None) -> tuple[PointCloud, dict]:
+    """(HDR cloud, JSON-able report). ``capture_cameras``: positions (cube maps) or Cameras."""
+    res = run_expansion(ldr_cloud, photo, capture_cameras, method, params, progress, cancel, names)
+    return res.cloud, res.report
+
+
+def _jsonable(d):
+    if isinstance(d, dict):
+        return {k: _jsonable(v) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_jsonable(v) for v in d]
+    if isinstance(d, (np.floating, np.integer)):
+        return d.item()
+    return d

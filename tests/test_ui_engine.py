@@ -1,6 +1,6 @@
 """The viewer engine offscreen (headless EGL): compositing, change sets, errors, screenshots,
-sessions and the HDR expansion job. The PBGI renderer is replaced by the analytic stand-in
-(tests/ui_fake_relighter.py) so these tests check the viewer, not PBGI."""
+sessions and the HDR expansion job, with the real PBGI renderer kept cheap (small viewports,
+micro-buffer 8; tests/ui_relighter.py), its calls counted by a spy that leaves them untouched."""
 
 from __future__ import annotations
 
@@ -9,23 +9,15 @@ import time
 import numpy as np
 import pytest
 
+from ui_relighter import renders, small_session  # noqa: F401  (renders: a fixture)
+
 from app.render.splat import near_far
 from app.ui import composite
-from app.ui.engine import ViewerEngine, default_session
-
-FAKE = "ui_fake_relighter:Relighter"   # tests/ is on sys.path under pytest
-
-
-@pytest.fixture
-def fake(monkeypatch):
-    monkeypatch.setenv("SCANLIGHT_RELIGHTER", FAKE)
-    import ui_fake_relighter
-    ui_fake_relighter.Relighter.calls.clear()
-    return ui_fake_relighter.Relighter
+from app.ui.engine import ViewerEngine
 
 
 def make_engine(ctx, size=(96, 72), session=None):
-    return ViewerEngine(ctx, session or default_session(), size=size)
+    return ViewerEngine(ctx, session or small_session(), size=size)
 
 
 def twin(e: ViewerEngine) -> np.ndarray:
@@ -36,7 +28,7 @@ def twin(e: ViewerEngine) -> np.ndarray:
                                inp["full"], near, far, BACKGROUND)[::-1]
 
 
-def test_gpu_composite_matches_numpy_twin(ctx, fake):
+def test_gpu_composite_matches_numpy_twin(ctx, renders):
     """Preview-only (interacting) and converged states: same linear image and asset mask."""
     e = make_engine(ctx, (80, 60))
     e.frame(interacting=True)
@@ -72,28 +64,60 @@ def test_bilateral_upsampling_keeps_colours_on_their_side_of_a_depth_edge():
     assert plain_red == pytest.approx(0.625) and (rgb[:, 7, 2] < 1e-3).all()
 
 
-def test_changes_redo_only_what_depends_on_them(ctx, fake):
+def test_changes_redo_only_what_depends_on_them(ctx, renders):
+    """Counted on the real renderer: display settings redo no GI; a BRDF slider re-gathers the
+    asset (and changes its pixels, not the room's); a camera move while interacting renders
+    only the reduced-resolution preview."""
     e = make_engine(ctx)
     e.frame()
     e.finish_refinement()
+    before = e.view.read_linear()
+    asset = before[..., 3] > 0
+    assert asset.sum() > 200 and all(c.microbuffer == 8 and c.mode == "classic"
+                                     for c in renders)
     s = e.session.settings
-    n = len(fake.calls)
+    n = len(renders)
     s.set("view.exposure", 1.0)                                   # display only
     info = e.frame()
-    assert len(fake.calls) == n and not info["room"]
-    e.session.set_material(0, {"roughness": 0.9})                 # re-gather, room untouched
-    info = e.frame()
-    assert len(fake.calls) > n and not info["room"] and info["gi"]
+    assert len(renders) == n and not info["room"]
+    s.set("view.exposure", 0.0)
+    e.session.set_material(0, {"roughness": 0.9, "base_color": [0.9, 0.1, 0.1]})
+    info = e.frame()                                              # re-gather, room untouched
+    assert len(renders) > n and not info["room"] and info["gi"]
+    e.finish_refinement()
+    after = e.view.read_linear()
+    np.testing.assert_array_equal(after[~asset], before[~asset])
+    red = after[asset][:, 0] / np.maximum(after[asset][:, 1], 1e-6)
+    was = before[asset][:, 0] / np.maximum(before[asset][:, 1], 1e-6)
+    assert np.median(red) > 2 * np.median(was)                      # the asset turned red
     s.set("pbgi.mode", "envmap")
     e.frame()
-    assert e.gi_stats["mode"] == "envmap"
-    n = len(fake.calls)
+    assert e.gi_stats["mode"] == "envmap" and renders[-1].mode == "envmap"
+    e.finish_refinement()
+    n = len(renders)
     e.nav.orbit(10, 0)                                             # camera: everything
     info = e.frame(interacting=True)
-    assert info["room"] and len(fake.calls) == n + 1               # preview only while moving
+    assert info["room"] and len(renders) == n + 1                  # preview only while moving
+    full = e.gi.camera
+    assert renders[-1].size[0] < full.width and e.gi.refining     # reduced resolution, pending
 
 
-def test_screenshot_png_is_the_tone_mapped_exr(ctx, fake, tmp_path):
+def test_stats_skip_tiles_outside_the_silhouette(ctx, renders):
+    """The PBGI panel shows the last gather that had receivers, not the zeros of an empty
+    corner tile; a new mode shows at once even from an empty tile."""
+    e = make_engine(ctx)
+    e.frame()
+    e.finish_refinement()
+    shown = dict(e.gi_stats)
+    assert shown["receivers"] > 0 and shown["nodes_visited"] > 0
+    e._render_gi(e.gi.camera, (0, 0, 4, 4))                       # the corner: only room
+    assert renders[-1].receivers == 0 and e.gi_stats == shown
+    e.session.settings.set("pbgi.mode", "envmap")
+    e._render_gi(e.gi.camera, (0, 0, 4, 4))
+    assert e.gi_stats["mode"] == "envmap" and e.gi_stats["receivers"] == 0
+
+
+def test_screenshot_png_is_the_tone_mapped_exr(ctx, renders, tmp_path):
     from ui_images import read_png
 
     from app.io.exr import read_exr
@@ -124,12 +148,35 @@ def test_missing_renderer_shows_a_placeholder_not_a_crash(ctx, monkeypatch):
     assert (shown[asset] > 240).all(axis=-1).sum() > 20               # white label text
 
 
-def test_bad_files_and_failing_renderer_become_messages(ctx, fake, monkeypatch, tmp_path):
-    s = default_session()
-    s.cloud = str(tmp_path / "missing.ply")
-    e = make_engine(ctx, session=s)
+def test_bad_files_and_failing_renderer_become_messages(ctx, renders, monkeypatch, tmp_path):
+    e = make_engine(ctx)
+    e.frame()
+    # the real renderer refusing its input (no material) is a message, and the loop goes on
+    e.session.set_materials([])
+    e.frame()
+    e.frame()
+    assert e.gi_failed and any(m.text.startswith("relighting: ") and "material" in m.text
+                               for m in e.messages)
+    e.reset_materials()
+    n = len(renders)
+    e.frame()
+    e.finish_refinement()
+    assert not e.gi_failed and e.gi_stats.get("completed")
+    assert sum(c.receivers for c in renders[n:]) > 100               # relit again
+
+    def boom(*a, **k):      # an unexpected bug inside the renderer (fault injection)
+        raise RuntimeError("GPU on fire")
+    monkeypatch.setattr(e.relighter, "render", boom)
+    e.session.set_material(0, {"metallic": 1.0})
+    e.frame()
+    e.frame()
+    assert e.gi_failed and any("GPU on fire" in m.text for m in e.messages)
+    monkeypatch.undo()
+
+    e.session.set_file("cloud", str(tmp_path / "missing.ply"))
     e.frame()
     assert any("missing.ply" in m.text for m in e.messages)
+    assert len(e.cloud.ldr) > 1000                                    # the old room stays
     bad = tmp_path / "broken.glb"
     bad.write_bytes(b"glTF garbage")
     e.session.set_file("asset", str(bad))
@@ -137,16 +184,25 @@ def test_bad_files_and_failing_renderer_become_messages(ctx, fake, monkeypatch, 
     assert any("broken.glb" in m.text for m in e.messages)
     assert e.mesh is not None                                         # the old asset stays
 
-    def boom(*a, **k):
-        raise RuntimeError("GPU on fire")
-    monkeypatch.setattr(e.relighter, "render", boom)
-    e.session.set_material(0, {"metallic": 1.0})
+
+def test_a_scene_without_a_room_keeps_running(ctx, renders, tmp_path):
+    """The first cloud fails to open: an empty room; the real renderer refuses to relight
+    without a cloud, which is a message, and the asset shows as the placeholder hatch."""
+    s = small_session()
+    s.cloud = str(tmp_path / "missing.ply")
+    e = make_engine(ctx, session=s)
     e.frame()
     e.frame()
-    assert e.gi_failed and any("GPU on fire" in m.text for m in e.messages)
+    assert any("missing.ply" in m.text for m in e.messages)
+    assert e.gi_failed and any(m.text.startswith("relighting: ") and "cloud" in m.text
+                               for m in e.messages)
+    lin = e.view.read_linear()
+    asset = lin[..., 3] > 0
+    assert asset.sum() > 200
+    np.testing.assert_allclose(np.unique(lin[asset][:, 0]), [0.10, 0.16], rtol=1e-6)
 
 
-def test_session_round_trip_renders_the_same_image(ctx, fake, tmp_path):
+def test_session_round_trip_renders_the_same_image(ctx, renders, tmp_path):
     from app.settings import load_session
     e = make_engine(ctx)
     e.nav.orbit(40, 10)
@@ -171,19 +227,26 @@ def _expansion_request(e, face=64):
                                           e.session.settings)
 
 
-def test_expansion_switches_the_room_to_hdr(ctx, fake):
+def test_expansion_switches_the_room_to_hdr(ctx, renders):
+    """The expanded cloud is shown and relights the asset: the lights no longer clip at 1, so
+    the relit asset gets brighter (the real renderer gathers the new node colours)."""
     from app.ui.hdr_task import ExpansionTask
     e = make_engine(ctx)
     e.frame()
+    e.finish_refinement()
     ldr = e.view.read_linear()
     task = ExpansionTask(_expansion_request(e), synchronous=True)
     assert task.state == "done", task.error
+    n = len(renders)
     e.set_hdr_cloud(task.result.cloud)
     assert e.session.settings["view.cloud"] == "hdr"
     e.frame()
+    e.finish_refinement()
+    assert len(renders) > n
     hdr = e.view.read_linear()
-    room = hdr[..., 3] == 0
+    room, asset = hdr[..., 3] == 0, hdr[..., 3] > 0
     assert hdr[room][:, :3].max() > 1.5 and ldr[room][:, :3].max() <= 1.0 + 1e-6
+    assert hdr[asset][:, :3].mean() > 1.5 * ldr[asset][:, :3].mean()        # measured: 2.2x
     e.session.settings.set("view.cloud", "difference")
     e.frame()
     diff = e.view.read_linear()[room][:, :3]
@@ -201,7 +264,7 @@ def test_difference_colours_follow_the_stops():
     np.testing.assert_allclose(c[2:], 1.0, atol=1e-3)                 # >= DIFF_STOPS: white
 
 
-def test_frame_loop_keeps_running_during_an_expansion(ctx, fake):
+def test_frame_loop_keeps_running_during_an_expansion(ctx, renders):
     """Frames while the expansion job runs in its worker thread, against frames without it.
 
     Bound: no frame longer than 4x the median frame without the job plus 250 ms. The job and the
@@ -230,7 +293,7 @@ def test_frame_loop_keeps_running_during_an_expansion(ctx, fake):
     assert max(during) <= bound, (max(during), bound, np.median(base))
 
 
-def test_opening_files_by_kind(ctx, fake, tmp_path, demo):
+def test_opening_files_by_kind(ctx, renders, tmp_path, demo):
     """What drag-and-drop and the file dialogs do: the engine reloads only what changed."""
     import json
 
@@ -257,7 +320,7 @@ def test_opening_files_by_kind(ctx, fake, tmp_path, demo):
         open_into(e.session, tmp_path / "notes.txt")
 
 
-def test_capture_preview_sees_the_room_in_six_directions(ctx, fake):
+def test_capture_preview_sees_the_room_in_six_directions(ctx, renders):
     e = make_engine(ctx)
     img = e.capture_preview((0.5, 1.4, 0.8), face=16)
     assert img.shape == (48, 64, 3)

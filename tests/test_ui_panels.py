@@ -28,12 +28,14 @@ class _Renderer:
 
 @pytest.fixture
 def ui(ctx, monkeypatch):
-    monkeypatch.setenv("SCANLIGHT_RELIGHTER", "ui_fake_relighter:Relighter")
-    from app.ui.engine import ViewerEngine, default_session
+    from ui_relighter import small_session, spy_renders
+    from app.ui.engine import ViewerEngine
     from app.ui.filedialog import FileDialog
     from app.ui.window import ViewerWindow
-    engine = ViewerEngine(ctx, default_session(), size=(900, 600))
+    calls = spy_renders(monkeypatch)           # the real renderer, micro-buffer 8
+    engine = ViewerEngine(ctx, small_session(), size=(900, 600))
     engine.frame()
+    assert calls and engine.renderer_available and engine.gi_stats.get("completed")
     w = ViewerWindow.__new__(ViewerWindow)          # the window's state without a window
     w.engine, w.session, w.ctx = engine, engine.session, ctx
     w.imgui, w.dialog = _Renderer(), FileDialog()

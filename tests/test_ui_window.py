@@ -8,7 +8,6 @@ top 110 pixels, the status line and progress bar in the bottom 50.
 
 from __future__ import annotations
 
-import importlib
 import json
 import os
 import subprocess
@@ -27,36 +26,26 @@ PANEL = 340
 pytestmark = pytest.mark.window
 
 
-def _renderer_available() -> bool:
-    try:
-        importlib.import_module("app.pbgi.renderer")
-        return True
-    except Exception:
-        return False
-
-
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
+    """One viewer session with the real PBGI renderer (micro-buffer 8, GI at 1/4 resolution)."""
     if not os.environ.get("DISPLAY"):
         pytest.skip("no X display (run the tests under xvfb-run, as packaging/test.sh does)")
-    from app.ui.engine import default_session
+    from ui_relighter import small_session
     tmp = tmp_path_factory.mktemp("window")
-    s = default_session()
-    s.settings.update({"pbgi.render_scale": 0.25, "pbgi.frame_budget_ms": 200.0,
-                       "view.show_gizmo": False, "view.show_cameras": False})
+    s = small_session(**{"pbgi.render_scale": 0.25, "pbgi.frame_budget_ms": 200.0,
+                         "view.show_gizmo": False, "view.show_cameras": False})
     session = s.save(tmp / "session.json")
     env = dict(os.environ, SCANLIGHT_UI_SCRIPT=str(TESTS / "ui_window_script.py"),
                SCANLIGHT_UI_OUT=str(tmp), SCANLIGHT_CONFIG=str(tmp / "cfg"),
                PYTHONPATH=os.pathsep.join([str(TESTS), str(ROOT)]))
-    real = _renderer_available()
-    if not real:  # still test the window, with the analytic stand-in
-        env["SCANLIGHT_RELIGHTER"] = "ui_fake_relighter:Relighter"
+    env.pop("SCANLIGHT_RELIGHTER", None)
     cmd = [sys.executable, "-m", "app", "view", "--session", str(session), "--size", f"{W}x{H}"]
     res = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     result = json.loads((tmp / "result.json").read_text())
     assert "error" not in result, result
-    return tmp, result, real
+    return tmp, result
 
 
 def _img(tmp, name):
@@ -64,7 +53,7 @@ def _img(tmp, name):
 
 
 def test_window_shows_the_engine_image_under_the_panels(run):
-    tmp, result, _ = run
+    tmp, result = run
     win, eng = _img(tmp, "a"), _img(tmp, "a.engine")
     assert win.shape == (H, W, 3)
     free = np.zeros((H, W), bool)
@@ -80,7 +69,7 @@ def test_window_shows_the_engine_image_under_the_panels(run):
 
 
 def test_brdf_slider_changes_the_asset_and_nothing_else(run):
-    tmp, result, _ = run
+    tmp, result = run
     a, b = _img(tmp, "a"), _img(tmp, "b")
     asset = read_png(tmp / "a.asset.png")[..., 0] > 0
     view = np.zeros((H, W), bool)
@@ -95,8 +84,11 @@ def test_brdf_slider_changes_the_asset_and_nothing_else(run):
 
 
 def test_mode_change_reaches_the_renderer_and_the_picture(run):
-    tmp, result, real = run
+    tmp, result = run
     shots = result["shots"]
+    for shot in shots.values():       # the real PBGI renderer, with the session's micro-buffer
+        assert shot["renderer_class"] == "app.pbgi.renderer.Relighter"
+        assert shot["microbuffer"] == 8 and shot["completed"] is True
     assert shots["b"]["mode"] == "classic"
     assert shots["c"]["mode"] == os.environ.get("SCANLIGHT_UI_MODE", "envmap")
     b, c = _img(tmp, "b"), _img(tmp, "c")
@@ -108,7 +100,7 @@ def test_mode_change_reaches_the_renderer_and_the_picture(run):
 
 def test_closing_saves_the_last_session(run):
     from app.settings import load_session
-    tmp, result, _ = run
+    tmp, result = run
     last = load_session(tmp / "cfg" / "last_session.json")
     assert last.mode == os.environ.get("SCANLIGHT_UI_MODE", "envmap")
     assert last.materials[0].base_color == pytest.approx((0.1, 0.25, 0.9))
@@ -116,7 +108,7 @@ def test_closing_saves_the_last_session(run):
 
 
 def test_gizmo_and_mouse_navigation(run):
-    tmp, result, _ = run
+    tmp, result = run
     c, d = _img(tmp, "c"), _img(tmp, "d")
     changed = np.abs(c - d).max(axis=-1) > 30
     assert changed[:, PANEL:].sum() > 100                 # the transform gizmo appeared
@@ -128,7 +120,7 @@ def test_gizmo_and_mouse_navigation(run):
 def test_expansion_runs_while_the_window_keeps_drawing(run):
     """Run pressed: the frame loop kept going (frames drawn while the job ran, none frozen), the
     progress was on screen, and the result switched the room to HDR."""
-    tmp, result, _ = run
+    tmp, result = run
     # Bound: 4x the median frame interval before the job + 1 s. The job and the window share two
     # cores; a frozen loop (job on the main thread, GIL held for seconds) would exceed it.
     assert result["job_frames"] >= 5

@@ -29,6 +29,10 @@ def shoot(viewer, name):
     write_png(OUT / f"{name}.asset.png", alpha)
     state["result"]["shots"][name] = {"mode": e.gi_stats.get("mode"),
                                       "renderer": e.renderer_available,
+                                      "renderer_class": f"{type(e.relighter).__module__}."
+                                                        f"{type(e.relighter).__qualname__}",
+                                      "microbuffer": e.gi_stats.get("microbuffer"),
+                                      "completed": e.gi_stats.get("completed"),
                                       "messages": [m.text for m in e.messages]}
 
 

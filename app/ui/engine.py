@@ -358,10 +358,12 @@ class ViewerEngine:
         s = self.session.settings
         label = self._label(cam)
         rect = None if self.mesh is None else screen_rect(cam, *self.mesh.bounds())
+        # a failed relighting shows the placeholder hatch (the reason is in the messages), so
+        # the asset never silently vanishes from the picture
         self.view.composite(cam, s["view.exposure"], s["view.tonemap"],
                             raw_room=s["view.cloud"] == "difference" and self.cloud.hdr is not None,
-                            unavailable=not self.renderer_available, asset_rect=rect,
-                            label_rect=label, room=room)
+                            unavailable=not self.renderer_available or self.gi_failed,
+                            asset_rect=rect, label_rect=label, room=room)
         self._composite_dirty = self._asset_dirty = False
 
     def _render_gi(self, camera: Camera, tile) -> np.ndarray:
@@ -385,8 +387,14 @@ class ViewerEngine:
         if img.shape[:2] != (h, w) and img.shape[:2] == (camera.height, camera.width):
             img = img[y:y + h, x:x + w]
         img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
-        self.gi_stats = dict(res.stats or {})
-        if self.gi_stats.get("completed") is False:
+        stats = dict(res.stats or {})
+        prev = self.gi_stats
+        # a tile outside the silhouette gathers nothing: keep showing the last real gather's
+        # figures (same mode and micro-buffer) rather than zeros
+        if not (stats.get("receivers", 1) == 0 and prev.get("receivers", 0) > 0
+                and all(prev.get(k) == stats.get(k) for k in ("mode", "microbuffer"))):
+            self.gi_stats = stats
+        if stats.get("completed") is False:
             self.error("relighting: a render pass did not complete (GPU loop budget); the image "
                        "may be missing light", "warning")
         return img

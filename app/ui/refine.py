@@ -19,8 +19,9 @@ time budget:
    least one cell per frame, so refinement always advances). Cells not yet rendered keep
    showing the upsampled preview. ``progress`` tells the UI how far it got.
 
-The render function is injected (``render(camera, tile) -> (h, w, 4) float32``), so tests drive
-this with an analytic stand-in and the viewer with the real PBGI renderer.
+The render function is injected (``render(camera, tile) -> (h, w, 4) float32``): the viewer
+passes the real PBGI renderer; tests check the scheduling arithmetic with a fake clock (exact
+timings) and the tiling with the real renderer.
 """
 
 from __future__ import annotations

@@ -7,9 +7,7 @@ transposed (``.T``) or with ``.astype('f4').tobytes(order='F')`` for GLSL's colu
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -107,14 +105,8 @@ def camera_from_dict(d: dict, source=None) -> Camera:
 
 
 def load_camera(path) -> Camera:
-    p = Path(path)
-    if not p.is_file():
-        raise ScanlightError(p, "camera file not found")
-    try:
-        d = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScanlightError(p, f"not valid JSON ({exc})") from None
-    return camera_from_dict(d, str(p))
+    from app.io.files import read_json
+    return camera_from_dict(read_json(path, "camera"), str(path))
 
 
 # The six faces of an axis-aligned cube map, in OpenGL order (+X, -X, +Y, -Y, +Z, -Z) with the

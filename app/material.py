@@ -6,9 +6,7 @@ Burley's BRDF explorer; ``base_color`` is linear RGB.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 
 import numpy as np
 
@@ -130,11 +128,5 @@ def material_from_dict(d: dict, source: str | None = None) -> Material:
 
 
 def load_material(path) -> Material:
-    p = Path(path)
-    if not p.is_file():
-        raise ScanlightError(p, "material file not found")
-    try:
-        d = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScanlightError(p, f"not valid JSON ({exc})") from None
-    return material_from_dict(d, str(p))
+    from app.io.files import read_json
+    return material_from_dict(read_json(path, "material"), str(path))

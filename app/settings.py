@@ -418,14 +418,9 @@ def session_from_dict(d: dict, base: Path, source=None) -> Session:
 
 
 def load_session(path) -> Session:
+    from app.io.files import read_json
     p = Path(path)
-    if not p.is_file():
-        raise ScanlightError(p, "session file not found")
-    try:
-        d = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScanlightError(p, f"not valid JSON ({exc})") from None
-    s = session_from_dict(d, p.resolve().parent, str(p))
+    s = session_from_dict(read_json(p, "session"), p.resolve().parent, str(p))
     s.path = p
     return s
 

@@ -4,7 +4,6 @@ and the environment map's cube faces."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import pbgi_scenes as S
 from app.camera import Camera

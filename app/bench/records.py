@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 
 def record(bench: str, case: dict, metrics: dict) -> dict:
@@ -34,8 +32,5 @@ def table(records: list[dict]) -> str:
 
 
 def write_json(records: list[dict], path) -> None:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_suffix(p.suffix + ".tmp")
-    tmp.write_text(json.dumps(records, indent=1))
-    tmp.replace(p)  # never a half-written file
+    from app.io.files import write_json as write
+    write(path, records)

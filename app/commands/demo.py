@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from pathlib import Path
 
-import numpy as np
+from app.io.files import write_json
 
 log = logging.getLogger(__name__)
 
@@ -25,16 +24,8 @@ def run(args) -> int:
     t0 = time.perf_counter()
     report = pipeline.run_demo(out, size=size, n_points=getattr(args, "points", 200_000))
     report["seconds_total"] = round(time.perf_counter() - t0, 2)
-    (out / "report.json").write_text(json.dumps(report, indent=1, default=_jsonable))
+    write_json(out / "report.json", report)
     print(f"demo done in {report['seconds_total']} s: images and report.json in {out}/")
     for line in report.get("summary", []):
         print("  " + line)
     return 0
-
-
-def _jsonable(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)

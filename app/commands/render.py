@@ -2,9 +2,9 @@
 baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
 
     scanlight render --cloud room.ply --object obj.json [--material mat.json] --camera cam.json
-                     --mode classic|envmap --microbuffer 24 --out img.exr
+                     --mode classic|mipmapped|hybrid|envmap --microbuffer 24 --out img.exr
                      [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
-                     [--background] [--budget-mb 1024]
+                     [--background] [--budget-mb 1024] [--omega-tr-factor 32]
 
 PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
 ``--background`` composites the object over the room's point splats seen from the same camera;
@@ -14,7 +14,6 @@ material of the asset; without it the asset's own (glTF/MTL) materials are used.
 
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import replace
 from pathlib import Path
@@ -48,6 +47,8 @@ def add_arguments(parser) -> None:
                         help="composite over the room's point splats")
     parser.add_argument("--budget-mb", type=float, default=1024.0, metavar="MB",
                         help="GPU memory budget for micro-buffers (default 1024)")
+    parser.add_argument("--omega-tr-factor", type=float, default=32.0, metavar="F",
+                        help="hybrid: refine in parallel while Omega(A) > F x Omega (default 32)")
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -73,6 +74,8 @@ def _check_args(args) -> None:
         raise UsageError(None, f"--exposure must be finite, got {args.exposure}")
     if not (np.isfinite(args.budget_mb) and args.budget_mb > 0):
         raise UsageError(None, f"--budget-mb must be > 0, got {args.budget_mb}")
+    if not (np.isfinite(args.omega_tr_factor) and args.omega_tr_factor > 0):
+        raise UsageError(None, f"--omega-tr-factor must be > 0, got {args.omega_tr_factor}")
     if args.mode in ("mipmapped", "hybrid"):
         from app.pbgi.renderer import IMPLEMENTED
         if args.mode not in IMPLEMENTED:
@@ -83,7 +86,7 @@ def _check_args(args) -> None:
 def run(args) -> int:
     from app.camera import load_camera
     from app.io.exr import write_exr
-    from app.io.files import atomic_output
+    from app.io.files import write_json
     from app.io.formats import load_object, placed_mesh
     from app.io.pointcloud import load_cloud
     from app.material import load_material
@@ -103,7 +106,7 @@ def run(args) -> int:
     r.set_cloud(cloud)
     r.set_asset(mesh)
     params = RenderParams(mode=args.mode, microbuffer=args.microbuffer,
-                          memory_budget_mb=args.budget_mb)
+                          memory_budget_mb=args.budget_mb, omega_tr_factor=args.omega_tr_factor)
     res = r.render(camera, materials, params)
     img = res.image
     if not res.stats["completed"]:
@@ -130,19 +133,10 @@ def run(args) -> int:
                   "bsh": {k: v for k, v in r.hierarchy.stats.items()
                           if isinstance(v, (int, float, str))}})
     if args.stats:
-        with atomic_output(args.stats) as tmp:
-            Path(tmp).write_text(json.dumps(stats, indent=1, default=_jsonable))
+        write_json(args.stats, stats)
     print(f"rendered {camera.width}x{camera.height} ({args.mode}, M={args.microbuffer}) in "
           f"{stats['ms']:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0
-
-
-def _jsonable(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
 
 
 __all__ = ["add_arguments", "run", "parse_size"]

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from app.camera import Camera
 from app.cloud import PointCloud
 from app.demo import room
 

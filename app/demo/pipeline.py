@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -21,16 +20,13 @@ import numpy as np
 
 from app.demo import room
 from app.demo.cache import load_demo
+from app.io.files import write_json
 
 log = logging.getLogger(__name__)
 
 
 def _progress(fraction: float, stage: str) -> None:
     print(f"\r  expanding: {stage:<12s} {100 * fraction:5.1f}%", end="", file=sys.stderr, flush=True)
-
-
-def _write_json(path: Path, obj) -> None:
-    path.write_text(json.dumps(obj, indent=1))
 
 
 def _save_png(path: Path, linear_rgb: np.ndarray, exposure: float = 0.0) -> None:
@@ -48,11 +44,11 @@ def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
     save_cloud(scene.ldr, files["ldr"])
     save_cloud(scene.gt, files["gt"])
     write_exr(files["photo"], scene.photo)
-    _write_json(files["object"], room.default_object("sphere"))
-    _write_json(files["capture"], [{"position": list(p)} for p in scene.capture_positions])
+    write_json(files["object"], room.default_object("sphere"))
+    write_json(files["capture"], [{"position": list(p)} for p in scene.capture_positions])
     for name, cam in room.default_views(size, size).items():
         files[f"camera_{name}"] = out / f"camera_{name}.json"
-        _write_json(files[f"camera_{name}"], cam.to_dict())
+        write_json(files[f"camera_{name}"], cam.to_dict())
     return files
 
 
@@ -61,7 +57,7 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000, face_size: int
     from app.hdr.pipeline import ExpandParams, run_expansion
     from app.io.formats import object_from_dict, placed_mesh
     from app.pbgi.compare import relit_errors, scaled
-    from app.pbgi.renderer import IMPLEMENTED, Relighter, RenderParams
+    from app.pbgi.renderer import IMPLEMENTED, Relighter
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,7 @@ import numpy as np
 from app.camera import camera_from_dict
 from app.errors import ScanlightError, UsageError
 from app.hdr.pipeline import METHODS, ExpandParams, Expansion, run_expansion
-from app.io.files import atomic_output, require_file
+from app.io.files import read_json, require_file, write_json
 
 
 # ------------------------------------------------------------------------------------ inputs
@@ -28,10 +28,7 @@ def load_cameras(path) -> list:
     map there) or full camera objects (with ``look_at``: one rendering with that camera);
     ``{"cameras": [...]}`` and a single object are accepted too."""
     p = require_file(path, "cameras", (".json",))
-    try:
-        data = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScanlightError(p, f"not valid JSON ({exc})") from None
+    data = read_json(p, "cameras")
     if isinstance(data, dict):
         data = data.get("cameras", [data])
     if not isinstance(data, list) or not data:
@@ -105,27 +102,7 @@ def execute_request(req, progress=None, cancel=None) -> Expansion:
 
 def write_report(report: dict, path) -> None:
     """JSON, atomically; NaN (e.g. an RMS over no points) is written as null."""
-    with atomic_output(path) as tmp:
-        Path(tmp).write_text(json.dumps(_finite(report), indent=1, default=_json_default,
-                                        allow_nan=False))
-
-
-def _finite(o):
-    if isinstance(o, dict):
-        return {k: _finite(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_finite(v) for v in o]
-    if isinstance(o, (float, np.floating)) and not math.isfinite(float(o)):
-        return None
-    return o
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+    write_json(path, report)
 
 
 # ------------------------------------------------------------------------------------ expand

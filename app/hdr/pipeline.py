@@ -24,6 +24,7 @@ from app.camera import Camera, CUBE_FACES, cube_cameras
 from app.cloud import PointCloud
 from app.color import luminance
 from app.errors import ScanlightError
+from app.io.files import jsonable
 from app.hdr import itmo
 from app.hdr.capture import point_spacing, project, splat_face
 from app.hdr.exposure import find_exposure
@@ -258,7 +259,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
     check = _checker(cancel)
     t_all = time.perf_counter()
     timings = {}
-    report = {"method": method, "params": _jsonable(asdict(params)), "warnings": [],
+    report = {"method": method, "params": jsonable(asdict(params)), "warnings": [],
               "units": "ldr-scan: expanded colours are alpha x photo radiance"}
     per_point = method.endswith("-pc")
     stages = [s for s in STAGES if not (per_point and s in ("capture", "project"))]
@@ -486,11 +487,3 @@ def expand_cloud(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "p
     return res.cloud, res.report
 
 
-def _jsonable(d):
-    if isinstance(d, dict):
-        return {k: _jsonable(v) for k, v in d.items()}
-    if isinstance(d, (list, tuple)):
-        return [_jsonable(v) for v in d]
-    if isinstance(d, (np.floating, np.integer)):
-        return d.item()
-    return d

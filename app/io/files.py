@@ -54,3 +54,41 @@ def atomic_output(path):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def read_json(path, kind: str):
+    """Parsed JSON of a ``kind`` file (camera, material, object, session...), or one error line."""
+    import json
+    p = require_file(path, kind)
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ScanlightError(p, f"not valid JSON ({exc})") from None
+
+
+def jsonable(obj):
+    """``obj`` with numpy scalars/arrays as Python values and non-finite floats as None (null),
+    so reports never contain NaN, which JSON does not allow."""
+    import math
+
+    import numpy as np
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, (str, int, float, bool)) or obj is None:
+        return obj
+    return str(obj)
+
+
+def write_json(path, obj) -> None:
+    """``obj`` as indented JSON, atomically (see ``jsonable``)."""
+    import json
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(json.dumps(jsonable(obj), indent=1, allow_nan=False))

@@ -15,7 +15,6 @@ i.e. R = Rz @ Ry @ Rx (right-handed, counter-clockwise looking down each axis); 
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import ScanlightError
-from app.io.files import require_file
+from app.io.files import read_json, require_file
 from app.io.mesh import MESH_EXTENSIONS, Mesh, load_mesh, make_sphere_mesh, transform_mesh
 
 SPHERE = "sphere"
@@ -93,11 +92,7 @@ def object_from_dict(d, base_dir, source=None) -> ObjectSpec:
 
 def load_object(path) -> ObjectSpec:
     p = require_file(path, "object", (".json",))
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScanlightError(p, f"not valid JSON ({exc})") from None
-    return object_from_dict(d, p.parent, p)
+    return object_from_dict(read_json(p, "object"), p.parent, p)
 
 
 def rotation_xyz(degrees) -> np.ndarray:

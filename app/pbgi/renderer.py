@@ -100,6 +100,10 @@ class RenderParams:
         if not 8 <= int(self.envmap_face) <= 2048:
             raise ScanlightError(None, f"envmap face size must be in [8, 2048], "
                                        f"got {self.envmap_face!r}")
+        f = self.omega_tr_factor
+        if isinstance(f, bool) or not isinstance(f, (int, float, np.number)) \
+                or not np.isfinite(f) or f <= 0:
+            raise ScanlightError(None, f"omega_tr_factor must be a number > 0, got {f!r}")
 
 
 @dataclass
@@ -419,12 +423,17 @@ class Relighter:
                 for k, v in r.get("extra", {}).items():
                     if isinstance(v, (int, float, np.number)) and not isinstance(v, bool):
                         self._mb_stats[k] = self._mb_stats.get(k, 0) + v
+                for k, v in r.get("peaks", {}).items():   # ... and peaks, the largest batch's
+                    self._mb_stats[k] = max(self._mb_stats.get(k, 0), v)
+            # the cut finder's own memory as allocated (its largest batch; Table 3's "extra")
+            self._mb_stats["mb_extra"] = max(r.get("bytes", 0) for r in results) / MB
             stats.update(self._mb_stats)
             self._mb_key = key if per >= n else None
         extra = reserve + state_per * per
+        stats.setdefault("mb_extra", extra / MB)
         stats.update(ms_cut=t_cut * 1e3, ms_gather=t_gather * 1e3, batch_receivers=per,
                      tile_halvings=halvings, mb_microbuffers=self.microbuffers.nbytes / MB,
-                     mb_extra=extra / MB)
+                     mb_extra_bound=extra / MB)
         return self.microbuffers.nbytes + extra
 
     def release(self) -> None:

@@ -1,0 +1,234 @@
+"""``scanlight bench table3``: the paper's Table 3 on the demo scene - Classic, Mipmapped and
+Hybrid PBGI, time (ms) and extra memory (MB) per viewport x micro-buffer x view.
+
+All modes are measured in the SAME run, cell by cell (for each viewport, micro-buffer and view the
+modes run one after the other on the same G-buffer input), so their ratios are comparable even
+on a shared machine; ``--repeat`` keeps the fastest of several renders per mode and cell.
+Shaders are compiled and JIT-warmed on a tiny render of every mode and micro-buffer size first
+(llvmpipe compiles a shader variant on its first dispatch).
+
+Records (app/bench/records.py), keyed like ``bench classic``: case.mode, case.viewport,
+case.microbuffer, case.view (closeup / whole); metrics.ms (the whole render: G-buffer, cut,
+gather, measured with ctx.finish()), metrics.mb (the mode's *extra* memory: what the cut finder
+allocates besides the micro-buffers, the G-buffer and the BSH, which every mode shares - the
+paper's Table 3 bottom; for Classic its resume state), plus ms_cut, ms_gather, mb_total,
+completed, batches, tile_halvings, nodes_visited and, for Mipmapped/Hybrid, the pair counts,
+the phases' times and mb_extra_used (the part of the pair streams actually filled). After the plain table it prints the
+markdown table laid out like the paper's (one block per mode, rows = viewports, columns = view x
+micro-buffer), the classic/hybrid ratio per cell and the memory blocks.
+
+The full grid (4 viewports x 3 micro-buffers x 2 views x 3 modes) takes a long time on a CPU:
+restrict it with --viewports / --microbuffers / --views / --modes.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+from app.bench.records import record
+
+log = logging.getLogger(__name__)
+
+ALL_MODES = ("classic", "mipmapped", "hybrid")
+ALL_VIEWS = ("closeup", "whole")
+PAPER_TABLE3 = {
+    # TOYROOM, ms: (view1 16/24/32, view2 16/24/32) per viewport; None = 'x' (failed)
+    "classic": {128: (9.7, 21.3, 35.2, 7.5, 16.7, 27.0), 256: (37.8, 85.1, 254.5, 15.6, 35.2, 81.2),
+                512: (138.9, 598.0, 3272.0, 41.1, 173.5, 920.6),
+                1024: (752.0, None, None, 306.2, None, None)},
+    "mipmapped": {128: (15.2, 31.2, 51.9, 9.9, 16.4, 24.8), 256: (40.0, 88.0, 151.0, 22.6, 47.9, 77.9),
+                  512: (131.1, 293.0, 565.2, 64.5, 148.4, 281.6),
+                  1024: (604.6, None, None, 244.7, None, None)},
+    "hybrid": {128: (9.1, 13.3, 24.7, 6.5, 8.8, 11.5), 256: (19.3, 41.4, 82.3, 9.9, 16.9, 29.8),
+               512: (62.1, 156.7, 316.2, 24.2, 53.1, 108.5),
+               1024: (285.3, None, None, 115.8, None, None)},
+    # MB of the transform-feedback buffers
+    "mb_mipmapped": {128: (10, 16, 27, 4, 6, 11), 256: (38, 55, 90, 15, 24, 39),
+                     512: (146, 206, 325, 50, 81, 135), 1024: (756, None, None, 183, None, None)},
+    "mb_hybrid": {128: (5, 10, 19, 1, 2, 4), 256: (22, 39, 76, 4, 8, 15),
+                  512: (89, 158, 306, 18, 32, 61), 1024: (356, None, None, 71, None, None)},
+}
+
+
+def _ints(text: str) -> list[int]:
+    return [int(t) for t in str(text).split(",") if t.strip()]
+
+
+def _names(allowed):
+    def parse(text: str) -> list[str]:
+        out = [t.strip() for t in str(text).split(",") if t.strip()]
+        bad = [t for t in out if t not in allowed]
+        if bad:
+            import argparse
+            raise argparse.ArgumentTypeError(f"unknown {', '.join(bad)} (known: {', '.join(allowed)})")
+        return out
+    return parse
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--viewports", type=_ints, default=[128, 256, 512, 1024],
+                        help="comma-separated square viewport sizes (default 128,256,512,1024)")
+    parser.add_argument("--microbuffers", type=_ints, default=[16, 24, 32],
+                        help="comma-separated micro-buffer sizes (default 16,24,32)")
+    parser.add_argument("--views", type=_names(ALL_VIEWS), default=list(ALL_VIEWS),
+                        help="comma-separated views: closeup, whole (default both)")
+    parser.add_argument("--modes", type=_names(ALL_MODES), default=list(ALL_MODES),
+                        help="comma-separated modes (default classic,mipmapped,hybrid)")
+    parser.add_argument("--repeat", type=int, default=1, help="renders per mode and cell; the fastest counts")
+    parser.add_argument("--budget-mb", type=float, default=1024.0, help="memory budget (RenderParams)")
+    parser.add_argument("--omega-tr-factor", type=float, default=None,
+                        help="Hybrid's Omega_tr factor (default: RenderParams')")
+    parser.add_argument("--points", type=int, default=200_000, help="points of the demo room")
+    parser.add_argument("--object", default="sphere", help="demo object: sphere or knot")
+    parser.add_argument("--markdown", metavar="PATH", help="also write the markdown table here")
+
+
+def setup(points: int = 200_000, kind: str = "sphere"):
+    """Relighter with the demo room and object (BSH built once: mode switches never rebuild)."""
+    from app.demo.cache import load_demo
+    from app.demo.room import default_object
+    from app.io.formats import object_from_dict, placed_mesh
+    from app.pbgi.renderer import Relighter
+    scene = load_demo(points)
+    r = Relighter()
+    r.set_cloud(scene.gt)
+    r.set_asset(placed_mesh(object_from_dict(default_object(kind), ".")))
+    return r
+
+
+def _material():
+    from app.material import Material
+    return Material(base_color=(0.8, 0.8, 0.8), roughness=0.5)
+
+
+def _params(mode, m, args):
+    from app.pbgi.renderer import RenderParams
+    kw = {"mode": mode, "microbuffer": int(m), "memory_budget_mb": float(args.budget_mb)}
+    if args.omega_tr_factor is not None:
+        kw["omega_tr_factor"] = float(args.omega_tr_factor)
+    return RenderParams(**kw)
+
+
+def _render(r, cam, mode, m, args, cold: bool = False):
+    """One render with the micro-buffer cache defeated (every repeat does the full work).
+    ``cold``: the pair engines first free what earlier cells allocated, so a cell's memory
+    figure is its own (their buffers are reused across renders while big enough)."""
+    r._mb_key = None
+    if cold:
+        for finder in r.cut_finders.values():
+            if hasattr(finder, "pyramid"):
+                finder.release()
+    return r.render(cam, [_material()], _params(mode, m, args))
+
+
+def run(args) -> list[dict]:
+    from app.demo.room import default_views
+    r = setup(args.points, args.object)
+    # warm-up: compile every shader variant on a tiny viewport
+    for m in args.microbuffers:
+        cam = default_views(16, 16)["closeup"]
+        for mode in args.modes:
+            _render(r, cam, mode, m, args)
+    records = []
+    for size in args.viewports:
+        cams = default_views(size, size)
+        for m in args.microbuffers:
+            for view in args.views:
+                best = {}
+                for rep in range(max(1, args.repeat)):
+                    for mode in args.modes:      # interleaved: the same conditions for all modes
+                        t0 = time.perf_counter()
+                        res = _render(r, cams[view], mode, m, args, cold=rep == 0)
+                        wall = time.perf_counter() - t0
+                        if mode not in best or res.stats["ms"] < best[mode][0].stats["ms"]:
+                            best[mode] = (res, wall)
+                for mode in args.modes:
+                    res, wall = best[mode]
+                    records.append(record("table3", {"mode": mode, "viewport": size, "microbuffer": m,
+                                                     "view": view}, _metrics(res.stats, wall)))
+                log.info("table3 %dx%d M=%d %s: %s", size, size, m, view,
+                         ", ".join(f"{k} {best[k][0].stats['ms']:.0f} ms" for k in args.modes))
+    text = markdown(records)
+    print(text)
+    if args.markdown:
+        from pathlib import Path
+        Path(args.markdown).write_text(text + "\n")
+    return records
+
+
+def _metrics(s: dict, wall: float) -> dict:
+    out = {"ms": s["ms"], "mb": s.get("mb_extra", 0.0), "ms_cut": s.get("ms_cut", 0.0),
+           "ms_gather": s.get("ms_gather", 0.0), "mb_total": s.get("mb", 0.0),
+           "completed": 1.0 if s.get("completed") else 0.0, "batches": s.get("batches", 0),
+           "tile_halvings": s.get("tile_halvings", 0), "nodes_visited": s.get("nodes_visited", 0.0),
+           "receivers": s.get("receivers", 0), "wall_s": wall}
+    for k in ("pairs_processed", "stream2_items", "refine_passes", "flushes", "ms_refine",
+              "ms_finish", "ms_pyramid", "mb_extra_used", "peak_stack_pairs",
+              "peak_stream2_items"):
+        if k in s:
+            out[k] = s[k]
+    if "walk_visited" in s and s.get("receivers"):
+        out["walk_visited_per_receiver"] = s["walk_visited"] / s["receivers"]
+    return out
+
+
+def _cell(records, mode, size, m, view, key="ms"):
+    for rec in records:
+        c = rec["case"]
+        if (c["mode"], c["viewport"], c["microbuffer"], c["view"]) == (mode, size, m, view):
+            return rec["metrics"][key]
+    return None
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    if v >= 10000:
+        return f"{v / 1000:.1f}k"
+    return f"{v:.1f}" if v < 1000 else f"{v:.0f}"
+
+
+def markdown(records: list[dict]) -> str:
+    """The Table 3 layout: per mode a block of rows (viewports) x columns (view x micro-buffer)."""
+    cases = [r["case"] for r in records]
+    sizes = sorted({c["viewport"] for c in cases})
+    mbs = sorted({c["microbuffer"] for c in cases})
+    views = [v for v in ALL_VIEWS if v in {c["view"] for c in cases}]
+    modes = [m for m in ALL_MODES if m in {c["mode"] for c in cases}]
+    cols = [(v, m) for v in views for m in mbs]
+    head = "| | " + " | ".join(f"{v} {m}x{m}" for v, m in cols) + " |"
+    sep = "|---" * (len(cols) + 1) + "|"
+    lines = []
+
+    def block(title, fn):
+        lines.extend([f"**{title}**", "", head, sep])
+        for size in sizes:
+            lines.append(f"| {size}x{size} | " + " | ".join(fn(size, v, m) for v, m in cols) + " |")
+        lines.append("")
+
+    for mode in modes:
+        block(f"{mode} (ms)", lambda s, v, m, mode=mode: _fmt(_cell(records, mode, s, m, v)))
+    if "classic" in modes and "hybrid" in modes:
+        def ratio(s, v, m):
+            c, h = _cell(records, "classic", s, m, v), _cell(records, "hybrid", s, m, v)
+            return "-" if not c or not h else f"{c / h:.2f}"
+        block("classic / hybrid (time ratio)", ratio)
+    for mode in modes:
+        if mode != "classic":
+            block(f"{mode} extra memory (MB)",
+                  lambda s, v, m, mode=mode: _fmt(_cell(records, mode, s, m, v, "mb")))
+    incomplete = [r["case"] for r in records if not r["metrics"].get("completed", 1.0)]
+    lines.append(f"cells completed: {len(records) - len(incomplete)}/{len(records)}"
+                 + ("" if not incomplete else f" (incomplete: {incomplete})"))
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # python -m app.bench.table3 (the CLI is `scanlight bench table3`)
+    import argparse
+
+    from app.bench.records import table
+
+    ap = argparse.ArgumentParser(description=__doc__)
+    add_arguments(ap)
+    print(table(run(ap.parse_args())))

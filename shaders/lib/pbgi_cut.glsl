@@ -1,0 +1,166 @@
+// Classic PBGI's per-receiver rules (paper Section 5.2 with Section 5.3's corrections), shared by
+// every depth-first walk: Classic's whole-tree walk and the Mipmapped/Hybrid finishing walks of
+// sub-trees. One source for the decision and the rasteriser, so the three modes can only differ
+// in how they reach the cut, never in what the cut is or how it is drawn.
+//
+// Per node A at distance d, radius r, seen from receiver p with normal n:
+//   * below the horizon (dot(c - p, n) <= -r): discard the subtree;
+//   * back-facing (Fig. 5, made conservative for the sphere's angular radius b = asin(r / d)):
+//     discard when every direction from p into the sphere meets only back faces of the normal
+//     cone, i.e. angle(-w, n_A) > alpha_A + b + pi/2  <=>  dot(w, n_A) > sin(alpha_A + b);
+//   * solid angle (eq. 4) 2 pi (1 - sqrt(d^2 - r^2) / d), computed as 2 pi s / (1 + sqrt(1 - s))
+//     with s = r^2 / d^2 (no cancellation, and no sqrt of a negative); a receiver inside the
+//     sphere (d <= r) sees it everywhere: descend, or rasterise a leaf into every micro-pixel;
+//   * accept when Omega(A) <= omega_stop (= 4 Omega, Section 5.3) - tightened to omega_horizon
+//     for a node straddling the horizon - or when A is a leaf; else descend.
+//
+// Needs: lib/bsh_textures.glsl, lib/microbuffer.glsl. CUT_LIST_CAP sizes the accepted list.
+#ifndef SCANLIGHT_PBGI_CUT_GLSL
+#define SCANLIGHT_PBGI_CUT_GLSL
+
+#define CUT_DESCEND 0u
+#define CUT_SKIP 1u
+#define CUT_ACCEPT 2u
+
+#ifndef CUT_LIST_CAP
+#define CUT_LIST_CAP 64
+#endif
+
+// Decision for node A seen from receiver (p, N) with micro-buffer frame (T, B, N); ``rect`` is
+// the micro-pixel rectangle to rasterise when the answer is CUT_ACCEPT, ``skip`` the node after
+// A's sub-tree.
+uint cut_decide(uint node, vec3 p, vec3 N, vec3 T, vec3 B, float omega_stop,
+                float omega_horizon, int m, out uvec4 rect, out uint skip) {
+    vec4 s = tnode_sphere(node);
+    uvec2 link = tnode_link(node);              // (skip, count | leaf bit)
+    vec3 dv = s.xyz - p;
+    float d2 = dot(dv, dv);
+    float r2 = s.w * s.w;
+    float h = dot(dv, N);
+    bool leaf = (link.y & BSH_TEX_LEAF_BIT) != 0u;
+    skip = link.x;
+    rect = uvec4(0u, 0u, uint(m - 1), uint(m - 1));
+    if (h <= -s.w) return CUT_SKIP;            // entirely below the horizon
+    if (d2 > r2) {
+        float inv_d = inversesqrt(d2);
+        float sin_b = s.w * inv_d;
+        float sin_b2 = sin_b * sin_b;
+        float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
+        vec4 cone = tnode_cone(node);
+        float sin_a = sqrt(max(1.0 - cone.w * cone.w, 0.0));
+        float cos_ab = cone.w * cos_b - sin_a * sin_b;     // cos(alpha + b)
+        float sin_ab = sin_a * cos_b + cone.w * sin_b;     // sin(alpha + b)
+        if (cos_ab > 0.0 && dot(dv, cone.xyz) * inv_d > sin_ab) return CUT_SKIP;  // Fig. 5
+        float omega = TWO_PI * sin_b2 / (1.0 + cos_b);
+        float limit = abs(h) < s.w ? omega_horizon : omega_stop;
+        if (leaf || omega <= limit) {
+            vec3 l = vec3(dot(dv, T), dot(dv, B), h) * inv_d;
+            rect = mb_cone_rect(l, sin_b, cos_b, m);
+            return CUT_ACCEPT;
+        }
+        return CUT_DESCEND;
+    }
+    return leaf ? CUT_ACCEPT : CUT_DESCEND;   // receiver inside: a leaf surrounds it
+}
+
+// The accepted nodes of one slice of a walk and their micro-pixel rectangles (packed).
+uint cut_list_node[CUT_LIST_CAP];
+uint cut_list_rect[CUT_LIST_CAP];
+
+// Depth-tested write with a deterministic tie-break: equal keys keep the lower node index, which
+// is what a depth-first walk (nodes in index order) gets with a strict test, whatever order the
+// nodes arrive in. A walk whose nodes do arrive in index order (Classic's whole-tree walk)
+// defines CUT_ORDERED_WRITES and keeps the cheaper strict test (mb_write): the same result.
+void cut_write(uint receiver, uint k, uint key, uint node) {
+#ifdef CUT_ORDERED_WRITES
+    mb_write(receiver, k, key, node);
+#else
+    ivec2 c = ivec2(int(k), int(receiver));
+    uvec2 e = imageLoad(mb_image, c).xy;
+    if (key < e.x || (key == e.x && node < e.y)) imageStore(mb_image, c, uvec4(key, node, 0u, 0u));
+#endif
+}
+
+// What the per-micro-pixel test needs about list entry k.
+MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
+    vec4 s = tnode_sphere(a);
+    vec4 cone = tnode_cone(a);
+    MbNode nd;
+    nd.dv = s.xyz - p;
+    nd.d2 = dot(nd.dv, nd.dv);
+    nd.r2 = s.w * s.w;
+    nd.axis = cone.xyz;
+    nd.sin_a = cone.w > 0.0 ? sqrt(max(1.0 - cone.w * cone.w, 0.0)) : 1.0;
+    nd.inv_area = inv_cell_area / float(max(tnode_link(a).y & BSH_TEX_COUNT_MASK, 1u));
+    nd.index = a;
+    return nd;
+}
+
+// Rasterise cut_list_node[0 .. count) (``cost`` entry tests in all: mb_rect_entries of each
+// rectangle) into the micro-buffer of batch receiver ``receiver``: one flat loop over
+// (node, entry) with mb_cursor (no inner loop), so the loop count is the budgeted ``cost`` and
+// lanes of a SIMD group that rasterise different nodes stay busy. Returns the iterations done;
+// ``k_out`` = the first node not finished (count when all are done): a loop the driver cut
+// short returns < cost.
+uint cut_raster(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, uint receiver, int m,
+                float inv_cell_area, out uint k_out) {
+    uint k = 0u;                        // list entry
+    MbCursor cur;                       // entry within the node's rectangle
+    MbNode nd;
+    uvec4 rect = uvec4(0u);
+    bool load = true;
+    uint it;
+    for (it = 0u; it < cost; ++it) {
+        if (load) {
+            nd = cut_node(cut_list_node[k], p, inv_cell_area);
+            rect = mb_unpack_rect(cut_list_rect[k]);
+            cur = mb_cursor(rect);
+            load = false;
+        }
+        uint kk = mb_cursor_entry(cur, m);
+        vec4 tb = mb_table(kk);
+        if (tb.w > 0.0) {
+            vec3 w = T * tb.x + B * tb.y + N * tb.z;
+            uint key = mb_hit_key(nd, w);
+            if (key != MB_EMPTY) cut_write(receiver, kk, key, nd.index);
+        }
+        if (!mb_cursor_next(cur, rect)) { k++; load = true; }
+    }
+    k_out = (it == cost) ? count : k;
+    return it;
+}
+
+
+// The same rasterisation as nested loops (node, then its entries): the node's set-up runs once
+// per node instead of being carried, masked, through every entry iteration. It pays off only
+// where the lanes of a SIMD group rasterise the same nodes in the same order - their inner
+// loops then have about the same length - as in the finishing walk of Mipmapped/Hybrid, whose
+// neighbouring receivers read the same shared lists (measured 3-8% faster there on llvmpipe);
+// Classic's lanes are out of step and keep the flat loop. Same budget, same result.
+uint cut_raster_nested(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, uint receiver,
+                       int m, float inv_cell_area, out uint k_out) {
+    uint it = 0u;
+    uint k;
+    for (k = 0u; k < count; ++k) {
+        MbNode nd = cut_node(cut_list_node[k], p, inv_cell_area);
+        uvec4 rect = mb_unpack_rect(cut_list_rect[k]);
+        MbCursor cur = mb_cursor(rect);
+        bool more = true;
+        uint j = 0u;
+        for (; more; ++j) {
+            uint kk = mb_cursor_entry(cur, m);
+            vec4 tb = mb_table(kk);
+            if (tb.w > 0.0) {
+                vec3 w = T * tb.x + B * tb.y + N * tb.z;
+                uint key = mb_hit_key(nd, w);
+                if (key != MB_EMPTY) cut_write(receiver, kk, key, nd.index);
+            }
+            more = mb_cursor_next(cur, rect);
+        }
+        it += j;
+        if (more) break;                // the driver cut the inner loop short
+    }
+    k_out = k;
+    return it;
+}
+#endif

@@ -25,8 +25,16 @@ from app.io.files import write_json
 log = logging.getLogger(__name__)
 
 
+_last_stage = [None]
+
+
 def _progress(fraction: float, stage: str) -> None:
-    print(f"\r  expanding: {stage:<12s} {100 * fraction:5.1f}%", end="", file=sys.stderr, flush=True)
+    """A live percentage on a terminal; one line per stage in a log file."""
+    if sys.stderr.isatty():
+        print(f"\r  expanding: {stage:<12s} {100 * fraction:5.1f}%", end="", file=sys.stderr, flush=True)
+    elif stage != _last_stage[0]:
+        _last_stage[0] = stage
+        print(f"  expanding: {stage} ({100 * fraction:.0f}%)", file=sys.stderr, flush=True)
 
 
 def _save_png(path: Path, linear_rgb: np.ndarray, exposure: float = 0.0) -> None:
@@ -70,7 +78,8 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000, face_size: int
     t = time.perf_counter()
     exp = run_expansion(scene.ldr, scene.photo, list(scene.capture_positions), "pmatch-rgb",
                         ExpandParams(face_size=face_size), progress=_progress)
-    print(file=sys.stderr)
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
     timings["expand_s"] = time.perf_counter() - t
     from app.io.pointcloud import save_cloud
     save_cloud(exp.cloud, out / "room_hdr.ply")

@@ -8,8 +8,8 @@
 // comes first (at most u_steps nodes, at most LIST_CAP accepted nodes, at most u_splat_budget
 // entry tests: mb_rect_entries of each accepted rectangle), then one flat loop rasterises the
 // accepted nodes, entry by entry (mb_cursor: no inner loop). Re-rasterising a node is
-// idempotent (strict depth test), so a slice cut short anywhere resumes
-// at the first node whose rasterisation did not finish and nothing is lost or counted twice.
+// idempotent (strict depth test), so a slice cut short anywhere resumes at the first node whose
+// rasterisation did not finish and nothing is lost or counted twice.
 //
 // The per-node rules (horizon and back-face culls, eq. 4's solid angle against 4 Omega, the
 // straddling threshold) and the rasteriser live in lib/pbgi_cut.glsl, shared with the finishing

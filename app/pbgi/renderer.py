@@ -27,6 +27,7 @@ import numpy as np
 from app.errors import ScanlightError
 from app.pbgi.microbuffer import (MAX_SIZE, MIN_SIZE, MicroBuffers, batch_size,
                                   bytes_per_receiver, entries)
+from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
 from app.pbgi.nodetex import NodeTextures
 
 log = logging.getLogger(__name__)
@@ -60,19 +61,6 @@ def _available(module: str) -> bool:
 IMPLEMENTED = tuple(m for m, (mod, _, _) in CUT_FINDERS.items() if _available(mod)) + ("envmap",)
 
 
-def z_order(pixels: np.ndarray, width: int) -> np.ndarray:
-    """Morton codes of row-major pixel indices (x in the even bits, y in the odd ones): batches
-    of consecutive receivers in this order are compact squares, not strips."""
-    p = np.asarray(pixels, dtype=np.uint64)
-    x, y = p % np.uint64(width), p // np.uint64(width)
-
-    def spread(v):
-        v = v & np.uint64(0xFFFF)
-        v = (v | (v << np.uint64(8))) & np.uint64(0x00FF00FF)
-        v = (v | (v << np.uint64(4))) & np.uint64(0x0F0F0F0F)
-        v = (v | (v << np.uint64(2))) & np.uint64(0x33333333)
-        return (v | (v << np.uint64(1))) & np.uint64(0x55555555)
-    return spread(x) | (spread(y) << np.uint64(1))
 MB = 1024.0 * 1024.0
 
 

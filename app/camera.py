@@ -74,6 +74,21 @@ class Camera:
                 "width": self.width, "height": self.height}
 
 
+def parse_size(text, minimum: int = 1) -> tuple[int, int]:
+    """A ``--size WxH`` argument as (width, height), or one usage-error line."""
+    import re
+
+    from app.errors import UsageError
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text or ""))
+    if not m:
+        raise UsageError(None, f"--size must look like 640x480, got {text!r}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (minimum <= w <= 16384 and minimum <= h <= 16384):
+        raise UsageError(None, f"--size must be between {minimum}x{minimum} and 16384x16384, "
+                               f"got {text!r}")
+    return w, h
+
+
 def _vec3(d: dict, key: str, source, default=None) -> np.ndarray:
     val = d.get(key, default)
     if val is None:

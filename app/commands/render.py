@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.camera import parse_size
 from app.errors import UsageError
 
 log = logging.getLogger(__name__)
@@ -49,16 +50,6 @@ def add_arguments(parser) -> None:
                         help="GPU memory budget for micro-buffers (default 1024)")
     parser.add_argument("--omega-tr-factor", type=float, default=32.0, metavar="F",
                         help="hybrid: refine in parallel while Omega(A) > F x Omega (default 32)")
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise UsageError(None, f"--size must look like 256x256, got {text!r}") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise UsageError(None, f"--size must be between 1x1 and 16384x16384, got {text!r}")
-    return w, h
 
 
 def _check_args(args) -> None:
@@ -139,4 +130,4 @@ def run(args) -> int:
     return 0
 
 
-__all__ = ["add_arguments", "run", "parse_size"]
+__all__ = ["add_arguments", "run"]

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import logging
 import os
-import re
 import sys
 
+from app.camera import parse_size as camera_parse_size
 from app.errors import ScanlightError, UsageError
 from app.settings import Session, load_last_session, load_session
 
@@ -21,13 +21,8 @@ log = logging.getLogger(__name__)
 
 
 def parse_size(text) -> tuple[int, int]:
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text or ""))
-    if not m:
-        raise UsageError(None, f"--size must look like 1280x800, got {text!r}")
-    w, h = int(m.group(1)), int(m.group(2))
-    if not (16 <= w <= 16384 and 16 <= h <= 16384):
-        raise UsageError(None, f"--size must be between 16x16 and 16384x16384, got {text!r}")
-    return w, h
+    """The window size: at least 16x16 so the panels and the viewport fit."""
+    return camera_parse_size(text, minimum=16)
 
 
 def open_session(args) -> Session:

@@ -3,10 +3,10 @@ asset, an HDR photo, a session, or an object JSON (asset + placement)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from app.errors import ScanlightError
+from app.io.files import read_json
 from app.settings import AssetTransform, Session
 
 
@@ -22,10 +22,7 @@ def file_kind(path) -> str:
     if ext in IMAGE_EXTENSIONS:
         return "photo"
     if ext == ".json":
-        try:
-            d = json.loads(Path(path).read_text())
-        except (OSError, ValueError) as exc:
-            raise ScanlightError(path, f"not valid JSON ({exc})") from None
+        d = read_json(path, "JSON")
         return "session" if isinstance(d, dict) and "scanlight_session" in d else "object"
     raise ScanlightError(path, f"don't know how to open {ext or 'files without an extension'} "
                                f"(clouds: {', '.join(CLOUD_EXTENSIONS)}; assets: "

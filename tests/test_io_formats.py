@@ -124,3 +124,14 @@ def test_degenerate_mesh_is_an_error(tmp_path):
     (tmp_path / "flat.obj").write_text("v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n")
     with pytest.raises(ScanlightError, match=r"flat\.obj: mesh has zero size"):
         placed_mesh(ObjectSpec(str(tmp_path / "flat.obj")))
+
+
+def test_builtin_knot_object_is_placed_like_a_mesh_file():
+    """"knot" (the demo's non-convex asset) is normalised to extent 1, then scaled and moved."""
+    import numpy as np
+    from app.io.formats import object_from_dict, placed_mesh
+    mesh = placed_mesh(object_from_dict({"mesh": "knot", "scale": 0.8, "translate": [1, 2, 3]},
+                                        ".", "k.json"))
+    lo, hi = (np.asarray(b, float) for b in mesh.bounds())
+    assert np.max(hi - lo) == pytest.approx(0.8, rel=1e-5)
+    assert 0.5 * (lo + hi) == pytest.approx([1, 2, 3], abs=1e-5)

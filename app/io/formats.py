@@ -2,7 +2,7 @@
 
     {"mesh": "path.glb" | "sphere", "translate": [x, y, z], "scale": s, "rotate_deg": [x, y, z]}
 
-``mesh`` is relative to the JSON file (or the word "sphere": diameter 1). ``translate`` (metres,
+``mesh`` is relative to the JSON file (or "sphere": diameter 1, or "knot": the demo asset). ``translate`` (metres,
 default 0) and ``scale`` (> 0, default 1) and ``rotate_deg`` (default 0) are optional; unknown keys
 are errors, so a typo such as "translation" is not silently ignored.
 
@@ -26,6 +26,15 @@ from app.io.files import read_json, require_file
 from app.io.mesh import MESH_EXTENSIONS, Mesh, load_mesh, make_sphere_mesh, transform_mesh
 
 SPHERE = "sphere"
+BUILTIN_MESHES = (SPHERE, "knot")  # the demo's sphere and its procedural non-convex asset
+
+
+def builtin_mesh(name: str, sphere_subdivisions: int = 4) -> Mesh:
+    """A built-in asset, centred with largest extent 1 (the sphere: diameter 1)."""
+    from app.io.mesh import make_default_asset, normalize_mesh
+    if name == SPHERE:
+        return make_sphere_mesh(sphere_subdivisions)
+    return normalize_mesh(make_default_asset())
 OBJECT_KEYS = ("mesh", "translate", "scale", "rotate_deg")
 
 
@@ -64,12 +73,12 @@ def object_from_dict(d, base_dir, source=None) -> ObjectSpec:
         raise ScanlightError(source, f"unknown object key(s) {', '.join(map(repr, unknown))} "
                                      f"(known: {', '.join(OBJECT_KEYS)})")
     if "mesh" not in d:
-        raise ScanlightError(source, "object has no 'mesh' key (a mesh file path or \"sphere\")")
+        raise ScanlightError(source, "object has no 'mesh' key (a mesh file path or \"sphere\" or \"knot\")")
     mesh = d["mesh"]
     if not isinstance(mesh, str) or not mesh.strip():
-        raise ScanlightError(source, f"object 'mesh' must be a file path or \"sphere\", "
+        raise ScanlightError(source, f"object 'mesh' must be a file path or \"sphere\" (or \"knot\"), "
                                      f"got {mesh!r}")
-    if mesh != SPHERE:
+    if mesh not in BUILTIN_MESHES:
         p = Path(mesh)
         p = (Path(base_dir) / p if not p.is_absolute() else p).resolve()
         if p.suffix.lower() not in MESH_EXTENSIONS:
@@ -115,8 +124,8 @@ def object_matrix(spec: ObjectSpec) -> np.ndarray:
 
 def placed_mesh(spec: ObjectSpec, sphere_subdivisions: int = 4) -> Mesh:
     """The object's mesh in room coordinates (see the module docstring for the order)."""
-    if spec.mesh == SPHERE:
-        mesh = make_sphere_mesh(sphere_subdivisions)  # already centred with diameter 1
+    if spec.mesh in BUILTIN_MESHES:
+        mesh = builtin_mesh(spec.mesh, sphere_subdivisions)
     else:
         mesh = load_mesh(spec.mesh, normalize=True)
     return transform_mesh(mesh, object_matrix(spec))

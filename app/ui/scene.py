@@ -14,6 +14,7 @@ import numpy as np
 from app.cloud import PointCloud
 from app.color import luminance
 from app.errors import ScanlightError
+from app.io.formats import BUILTIN_MESHES, builtin_mesh
 from app.material import Material
 from app.settings import AssetTransform, Session
 
@@ -89,10 +90,8 @@ class Asset:
     def __init__(self, name: str):
         from app.io import mesh as meshes
         self.name = name
-        if name == "sphere":
-            self.base = meshes.make_sphere_mesh(4)
-        elif name == "knot":
-            self.base = meshes.normalize_mesh(meshes.make_default_asset())
+        if name in BUILTIN_MESHES:
+            self.base = builtin_mesh(name)
         else:
             self.base = meshes.load_mesh(name, normalize=True)
         self.materials: list[Material] = [m for m in self.base.materials] or [Material()]
@@ -103,7 +102,7 @@ class Asset:
 
     @property
     def label(self) -> str:
-        return self.name if self.name in ("sphere", "knot") else Path(self.name).name
+        return self.name if self.name in BUILTIN_MESHES else Path(self.name).name
 
 
 def copy_materials(mats: list[Material]) -> list[Material]:

@@ -104,7 +104,8 @@ SETTINGS: tuple[Setting, ...] = (
     # -- PBGI -----------------------------------------------------------------------------------
     Setting("pbgi.mode", "choice", "classic",
             "Classic: one hierarchy walk per pixel. Mipmapped: walks shared through the G-buffer "
-            "pyramid. Hybrid: shared walk, finished per pixel. Environment map: one cube map "
+            "pyramid. Hybrid: far field shared between neighbouring pixels, near field per pixel "
+            "(several times faster). Environment map: one cube map "
             "from the asset centre.", choices=MODES),
     Setting("pbgi.microbuffer", "int", 24, "Micro-buffer resolution M (M x M micro-pixels "
             "per receiver).", 8, 32, "px"),
@@ -115,6 +116,10 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("pbgi.omega_tr_factor", "float", 32.0, "Hybrid: a node is refined per pixel once "
             "its solid angle drops below this factor times the micro-pixel's.", 1.0, 256.0,
             "x", label="Omega_tr factor", log=True),
+    Setting("pbgi.parallax_tolerance", "float", 1.0, "Hybrid: the far field is walked once per "
+            "block of pixels where seen from any pixel of the block it moves by less than this "
+            "(micro-pixels); 0 = the exact Hybrid (the same cut as Classic, slower).", 0.0, 4.0,
+            "px", label="parallax tolerance"),
     Setting("pbgi.memory_budget_mb", "float", 1024.0, "GPU memory the mipmapped/hybrid pair "
             "lists may use before they fall back to smaller batches.", 64.0, 8192.0, "MB",
             label="memory budget", log=True),

@@ -43,6 +43,16 @@ uniform uint u_splat_budget;   // entry tests per dispatch (>= entries per recei
 uniform float u_inv_cell_area; // 1 / cell_size^2 of the hierarchy (tie-break scale)
 uniform uint u_node_count;     // BSH_END
 
+// Far-field sharing (Hybrid, app/pbgi/farfield.py): share[2i] = (centre, D) of the ball that
+// splits the tree for row i, share[2i + 1].xyz = the normal whose frame (and horizon) row i's
+// micro-buffer uses: its block's cone axis. A node whose sphere lies outside the ball is *far* (so is its whole
+// sub-tree: a parent's sphere contains its children's). SHARE_SPLIT 1: row i is a block of
+// receivers and walks only the far field (from the block's centre, in its normal-cone frame);
+// SHARE_SPLIT 2: row i is a receiver and walks only the near field (D = +inf: everything).
+#ifdef SHARE_SPLIT
+layout(std430, binding = 3) readonly buffer Share { vec4 share[]; };
+#endif
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
@@ -54,6 +64,10 @@ void main() {
     uint rid = u_first + i;
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
+#ifdef SHARE_SPLIT
+    vec4 ball = share[2u * i];
+    N = share[2u * i + 1u].xyz;
+#endif
     vec3 T, B;
     orthonormal_basis(N, T, B);
 
@@ -66,6 +80,17 @@ void main() {
         uvec4 rect;
         uint skip;
         uint dec = cut_decide(node, p, N, T, B, u_omega_stop, u_omega_horizon, u_m, rect, skip);
+#ifdef SHARE_SPLIT
+        vec4 sph = tnode_sphere(node);
+        vec3 dc = sph.xyz - ball.xyz;
+        float rr = ball.w + sph.w;
+        bool far = dot(dc, dc) >= rr * rr;
+#if SHARE_SPLIT == 1
+        if (!far) dec = (tnode_link(node).y & BSH_TEX_LEAF_BIT) != 0u ? CUT_SKIP : CUT_DESCEND;
+#else
+        if (far) dec = CUT_SKIP;
+#endif
+#endif
         uint next = node + 1u;          // descend
         if (dec == CUT_ACCEPT) {
             uint c = mb_rect_entries(rect);

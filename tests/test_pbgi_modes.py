@@ -3,6 +3,8 @@ bounds and the completed flags (app/pbgi/gmip.py, mipmapped.py, hybrid.py)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -127,7 +129,7 @@ def test_modes_fill_identical_microbuffers(demo_relighter, view, m):
     cam = default_views(32, 32)[view]
     rec = _receivers(r, cam)
     finders = {"classic": r.cut_finder(RenderParams()), "mipmapped": MipmappedCut(r.ctx),
-               "hybrid": HybridCut(r.ctx, 32.0)}
+               "hybrid": HybridCut(r.ctx, 32.0, parallax_tolerance=0.0)}
     out = {}
     for name, f in finders.items():
         out[name], res = _fill(r, f, rec, m, cam.width)
@@ -140,7 +142,7 @@ def test_modes_fill_identical_microbuffers(demo_relighter, view, m):
 
 
 def test_hybrid_shares_the_walk(demo_relighter):
-    """What Hybrid is for: the per-receiver finishing walks visit fewer nodes than Classic's
+    """What the exact Hybrid (no far-field sharing) is for: the per-receiver finishing walks visit fewer nodes than Classic's
     whole-tree walks, the difference being done once per pyramid pixel; a smaller Omega_tr
     moves more of the walk into the shared phase."""
     from app.demo.room import default_views
@@ -150,7 +152,7 @@ def test_hybrid_shares_the_walk(demo_relighter):
     _, classic = _fill(r, r.cut_finder(RenderParams()), rec, 16, cam.width)
     walks = {}
     for factor in (32.0, 6.0):
-        _, res = _fill(r, HybridCut(r.ctx, factor), rec, 16, cam.width)
+        _, res = _fill(r, HybridCut(r.ctx, factor, parallax_tolerance=0.0), rec, 16, cam.width)
         walks[factor] = res["extra"]["walk_visited"] / len(rec)
         assert res["extra"]["pairs_processed"] < len(rec) * classic["visited"].mean()
     assert walks[6.0] < walks[32.0] < classic["visited"].mean()
@@ -200,24 +202,27 @@ def test_allocation_failure_is_reported_not_raised_as_a_crash(demo_relighter):
 def test_render_modes_budget_and_halving(demo_relighter, mode, monkeypatch):
     """Through the renderer: a budget of 1 MB splits the frame into batches without changing
     the image; GL refusing the first allocation halves the batch (stats say so) and the image
-    is still the same; stats carry the per-mode figures."""
+    is still the same; stats carry the per-mode figures. Hybrid without far-field sharing
+    (tests/test_pbgi_farfield.py has the sharing's own)."""
     from app.demo.room import default_views
     r = demo_relighter
     cam = default_views(32, 32)["closeup"]
     mat = S.diffuse(0.6)
+    exact = RenderParams(mode=mode, microbuffer=16, parallax_tolerance=0.0)
     base = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=16)).image
-    res = r.render(cam, [mat], RenderParams(mode=mode, microbuffer=16))
+    res = r.render(cam, [mat], exact)
     s = res.stats
     assert s["completed"] and s["mode"] == mode
     assert np.allclose(res.image, base, rtol=1e-5, atol=1e-7)
     for key in ("ms", "mb", "mb_extra", "nodes_visited", "pairs_processed", "tile_halvings"):
         assert key in s, key
-    small = r.render(cam, [mat], RenderParams(mode=mode, microbuffer=16, memory_budget_mb=1.0))
+    small = r.render(cam, [mat], replace(exact, memory_budget_mb=1.0))
     assert small.stats["batches"] > 1 and small.stats["completed"]
     assert small.stats["mb_extra"] + small.stats["mb_microbuffers"] <= 1.0 + 0.25
     assert np.allclose(small.image, base, rtol=1e-5, atol=1e-7)
 
-    finder = r._cut(mode, RenderParams(mode=mode))
+    finder = r._cut(mode, exact)
+    finder = getattr(finder, "engine", finder)          # Hybrid: its PairRefiner
     real = finder._alloc
     refused = {"n": 0}
 
@@ -229,7 +234,7 @@ def test_render_modes_budget_and_halving(demo_relighter, mode, monkeypatch):
 
     monkeypatch.setattr(finder, "_alloc", flaky)
     finder.release()
-    halved = r.render(cam, [mat], RenderParams(mode=mode, microbuffer=16))
+    halved = r.render(cam, [mat], exact)
     assert halved.stats["tile_halvings"] >= 1 and halved.stats["completed"]
     assert np.allclose(halved.image, base, rtol=1e-5, atol=1e-7)
 
@@ -287,9 +292,9 @@ def test_table3_records_and_markdown(capsys):
 
 
 def test_render_cli_modes_give_classic_s_image(tmp_path):
-    """`scanlight render --mode mipmapped|hybrid` writes the same EXR as --mode classic (the
-    same cut), with the per-mode figures in the stats JSON; a bad Omega_tr factor is a usage
-    error."""
+    """`scanlight render --mode mipmapped|hybrid --parallax-tolerance 0` writes the same EXR as
+    --mode classic (the same cut), with the per-mode figures in the stats JSON; the default
+    Hybrid (far-field sharing) is close to it; bad factors are usage errors."""
     import json
 
     from app.cli import main
@@ -307,7 +312,7 @@ def test_render_cli_modes_give_classic_s_image(tmp_path):
         assert main(["render", "--cloud", str(tmp_path / "room.ply"), "--object",
                      str(tmp_path / "obj.json"), "--camera", str(tmp_path / "cam.json"),
                      "--mode", mode, "--microbuffer", "12", "--omega-tr-factor", "16",
-                     "--out", str(out), "--stats", str(st)]) == 0
+                     "--parallax-tolerance", "0", "--out", str(out), "--stats", str(st)]) == 0
         images[mode] = read_exr(out).rgb
         stats = json.loads(st.read_text())
         assert stats["mode"] == mode and stats["completed"] is True
@@ -316,8 +321,18 @@ def test_render_cli_modes_give_classic_s_image(tmp_path):
     assert images["classic"].max() > 0
     for mode in ("mipmapped", "hybrid"):
         assert np.allclose(images[mode], images["classic"], rtol=1e-5, atol=1e-7), mode
+    shared = tmp_path / "shared.exr"
+    assert main(["render", "--cloud", str(tmp_path / "room.ply"), "--object",
+                 str(tmp_path / "obj.json"), "--camera", str(tmp_path / "cam.json"),
+                 "--mode", "hybrid", "--microbuffer", "12", "--out", str(shared)]) == 0
+    got, want = read_exr(shared).rgb, images["classic"]
+    assert abs(got.mean() / want.mean() - 1) < 0.02
     with pytest.raises(SystemExit):
         main(["render", "--omega-tr-factor", "x"])
+    assert main(["render", "--cloud", str(tmp_path / "room.ply"), "--object",
+                 str(tmp_path / "obj.json"), "--camera", str(tmp_path / "cam.json"),
+                 "--mode", "hybrid", "--parallax-tolerance", "-1", "--out",
+                 str(tmp_path / "x.exr")]) == 2
     assert main(["render", "--cloud", str(tmp_path / "room.ply"), "--object",
                  str(tmp_path / "obj.json"), "--camera", str(tmp_path / "cam.json"),
                  "--mode", "hybrid", "--omega-tr-factor", "0", "--out",

@@ -79,6 +79,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--budget-mb", type=float, default=1024.0, help="memory budget (RenderParams)")
     parser.add_argument("--omega-tr-factor", type=float, default=None,
                         help="Hybrid's Omega_tr factor (default: RenderParams')")
+    parser.add_argument("--parallax-tolerance", type=float, default=None,
+                        help="Hybrid's far-field sharing tolerance in micro-pixels, 0 = the exact "
+                             "Hybrid (default: RenderParams')")
     parser.add_argument("--points", type=int, default=200_000, help="points of the demo room")
     parser.add_argument("--object", default="sphere", help="demo object: sphere or knot")
     parser.add_argument("--markdown", metavar="PATH", help="also write the markdown table here")
@@ -107,6 +110,8 @@ def _params(mode, m, args):
     kw = {"mode": mode, "microbuffer": int(m), "memory_budget_mb": float(args.budget_mb)}
     if args.omega_tr_factor is not None:
         kw["omega_tr_factor"] = float(args.omega_tr_factor)
+    if args.parallax_tolerance is not None:
+        kw["parallax_tolerance"] = float(args.parallax_tolerance)
     return RenderParams(**kw)
 
 
@@ -165,7 +170,8 @@ def _metrics(s: dict, wall: float) -> dict:
            "receivers": s.get("receivers", 0), "wall_s": wall}
     for k in ("pairs_processed", "stream2_items", "refine_passes", "flushes", "ms_refine",
               "ms_finish", "ms_pyramid", "mb_extra_used", "peak_stack_pairs",
-              "peak_stream2_items"):
+              "peak_stream2_items", "share_blocks", "share_receivers", "share_block_visits",
+              "ms_share_far", "ms_share_near"):
         if k in s:
             out[k] = s[k]
     if "walk_visited" in s and s.get("receivers"):

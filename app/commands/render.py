@@ -5,6 +5,7 @@ baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
                      --mode classic|mipmapped|hybrid|envmap --microbuffer 24 --out img.exr
                      [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
                      [--background] [--budget-mb 1024] [--omega-tr-factor 32]
+                     [--parallax-tolerance 1]
 
 PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
 ``--background`` composites the object over the room's point splats seen from the same camera;
@@ -50,6 +51,9 @@ def add_arguments(parser) -> None:
                         help="GPU memory budget for micro-buffers (default 1024)")
     parser.add_argument("--omega-tr-factor", type=float, default=32.0, metavar="F",
                         help="hybrid: refine in parallel while Omega(A) > F x Omega (default 32)")
+    parser.add_argument("--parallax-tolerance", type=float, default=1.0, metavar="EPS",
+                        help="hybrid: share the far field between neighbouring receivers where it "
+                             "moves by < EPS micro-pixels (default 1; 0 = the exact Hybrid)")
 
 
 def _check_args(args) -> None:
@@ -67,6 +71,9 @@ def _check_args(args) -> None:
         raise UsageError(None, f"--budget-mb must be > 0, got {args.budget_mb}")
     if not (np.isfinite(args.omega_tr_factor) and args.omega_tr_factor > 0):
         raise UsageError(None, f"--omega-tr-factor must be > 0, got {args.omega_tr_factor}")
+    if not (np.isfinite(args.parallax_tolerance) and 0 <= args.parallax_tolerance <= 4):
+        raise UsageError(None, f"--parallax-tolerance must be in [0, 4], "
+                               f"got {args.parallax_tolerance}")
     if args.mode in ("mipmapped", "hybrid"):
         from app.pbgi.renderer import IMPLEMENTED
         if args.mode not in IMPLEMENTED:
@@ -97,7 +104,8 @@ def run(args) -> int:
     r.set_cloud(cloud)
     r.set_asset(mesh)
     params = RenderParams(mode=args.mode, microbuffer=args.microbuffer,
-                          memory_budget_mb=args.budget_mb, omega_tr_factor=args.omega_tr_factor)
+                          memory_budget_mb=args.budget_mb, omega_tr_factor=args.omega_tr_factor,
+                          parallax_tolerance=args.parallax_tolerance)
     res = r.render(camera, materials, params)
     img = res.image
     if not res.stats["completed"]:

@@ -56,9 +56,10 @@ class ClassicCut:
         return self.state
 
     def fill(self, mb: MicroBuffers, receivers, first: int, count: int, m: int, nodes,
-             cell_size: float = 1.0) -> dict:
+             cell_size: float = 1.0, share=None) -> dict:
         """Fill the micro-buffers (already emptied) of receivers [first, first + count);
-        ``nodes`` is the hierarchy's NodeTextures."""
+        ``nodes`` is the hierarchy's NodeTextures. ``share``: the per-row (centre, D) buffer of
+        a walk compiled with SHARE_SPLIT (app/pbgi/farfield.py)."""
         node_count = nodes.count
         if self.splat_budget < entries(m):
             raise ValueError("splat budget must cover one whole micro-buffer")
@@ -66,6 +67,8 @@ class ClassicCut:
         receivers.bind_to_storage_buffer(0)
         state.bind_to_storage_buffer(1)
         self.counter.bind_to_storage_buffer(2)
+        if share is not None:
+            share.bind_to_storage_buffer(3)
         nodes.use()
         mb.bind()
         prog = self.prog

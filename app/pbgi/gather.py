@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.pbgi.microbuffer import table_texture
+from app.pbgi.microbuffer import flux_texture, table_texture
 from app.render.programs import load_compute
 
 GROUP = 64
@@ -20,18 +20,26 @@ class Gather:
         self.ctx = ctx
         self._progs = {}
 
-    def _prog(self, cubemap: bool):
-        if cubemap not in self._progs:
-            self._progs[cubemap] = load_compute(
-                self.ctx, "pbgi_gather.glsl", defines={"RADIANCE_CUBEMAP": 1} if cubemap else None)
-        return self._progs[cubemap]
+    def _prog(self, cubemap: bool, frames: bool = False):
+        key = (cubemap, frames)
+        if key not in self._progs:
+            defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
+            if frames:
+                defines["FRAME_NORMALS"] = 1
+            self._progs[key] = load_compute(self.ctx, "pbgi_gather.glsl", defines=defines or None)
+        return self._progs[key]
 
     def run(self, receivers, materials, output, first: int, count: int, m: int,
-            camera_rel: np.ndarray, mb=None, nodes=None, env=None) -> None:
+            camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None) -> None:
         """Gather receivers [first, first + count) into ``output`` (vec4 per tile pixel).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
-        EnvironmentMap) gives the radiance."""
-        prog = self._prog(env is not None)
+        EnvironmentMap) gives the radiance. ``frames``: per batch receiver, the normal whose
+        frame its micro-buffer is in (vec4; default its own normal - Hybrid's far-field sharing
+        gives every receiver of a block the block's frame)."""
+        prog = self._prog(env is not None, frames is not None)
+        if frames is not None:
+            frames.bind_to_storage_buffer(8)
+            flux_texture(self.ctx, m).use(location=7)
         receivers.bind_to_storage_buffer(0)
         materials.bind_to_storage_buffer(6)
         output.bind_to_storage_buffer(7)

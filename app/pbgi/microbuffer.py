@@ -48,15 +48,17 @@ MAX_SPLIT = 8         # ... is cut into that many elevation bands (at most MAX_S
 
 def _region_integrals(x0, x1, y0, y1, r_in, r_out, samples):
     """For regions [x0, x1] x [y0, y1] intersected with the annulus r_in <= r <= r_out (arrays
-    of shape (E,)): cosine-weighted solid angle (= projected area), its centroid (x, y), and
-    solid angle. The y integrals are analytic per x; x is a midpoint sum of ``samples`` nodes."""
+    of shape (E,)): cosine-weighted solid angle (= projected area), its centroid (x, y), solid
+    angle, and the x and y parts of the direction flux (integral of w d omega; its z part is the
+    projected area). The y integrals are analytic per x (d omega = dA / z, z = sqrt(a^2 - y^2)
+    with a^2 = 1 - x^2: y / z integrates to -z); x is a midpoint sum of ``samples`` nodes."""
     t = (np.arange(samples) + 0.5) / samples
     xs = x0[:, None] + (x1 - x0)[:, None] * t[None, :]                    # (E, S)
     dx = ((x1 - x0) / samples)[:, None]
     a1 = np.sqrt(np.maximum(1.0 - xs * xs, 0.0))                           # unit-disc half chord
     a_in = np.sqrt(np.maximum(r_in[:, None] ** 2 - xs * xs, 0.0))
     a_out = np.sqrt(np.maximum(r_out[:, None] ** 2 - xs * xs, 0.0))
-    area = mx = my = omega = 0.0
+    area = mx = my = omega = fx = fy = 0.0
     for lo_, hi_ in ((a_in, a_out), (-a_out, -a_in)):                     # y > 0 and y < 0 parts
         lo = np.maximum(lo_, y0[:, None])
         hi = np.minimum(hi_, y1[:, None])
@@ -69,7 +71,10 @@ def _region_integrals(x0, x1, y0, y1, r_in, r_out, samples):
             ang = np.where(ok & (a1 > 0), np.arcsin(np.clip(hi / a1, -1, 1))
                            - np.arcsin(np.clip(lo / a1, -1, 1)), 0.0)
         omega = omega + (ang * dx).sum(1)
-    return area, mx, my, omega
+        fx = fx + (ang * xs * dx).sum(1)
+        fy = fy + (np.where(ok, np.sqrt(np.maximum(a1 * a1 - lo * lo, 0.0))
+                            - np.sqrt(np.maximum(a1 * a1 - hi * hi, 0.0)), 0.0) * dx).sum(1)
+    return area, mx, my, omega, fx, fy
 
 
 @lru_cache(maxsize=None)
@@ -90,7 +95,9 @@ def micro_pixel_table(m: int, samples: int = 1024) -> dict:
     M*M on, grouped by pixel in grid order.
 
     Returns: dir (E, 3) unit centroid direction of the entry's region (cosine-weighted); weight
-    (E,) its cosine-weighted solid angle (sums to pi); solid_angle (E,) (sums to 2 pi); pixel
+    (E,) its cosine-weighted solid angle (sums to pi); solid_angle (E,) (sums to 2 pi); flux
+    (E, 3) the integral of the direction over the region, so that the cosine-weighted solid
+    angle about ANY normal n the region lies above is n . flux (flux.z = weight); pixel
     (E,) its grid pixel; extra_first, extra_count (M*M,) where a pixel's further bands start and
     how many there are; prefix (M + 1, M + 1) the summed-area table of extra_count, so that a
     rectangle's entry count is its area plus four look-ups (rect_entries); entries = E.
@@ -112,10 +119,11 @@ def micro_pixel_table(m: int, samples: int = 1024) -> dict:
     r_in = np.where(band + 1 == n, r_min[pix],
                     np.cos(e_lo[pix] + (e_hi - e_lo)[pix] * (band + 1) / n))
     r_out = np.where(band == 0, 1.0, np.cos(e_lo[pix] + (e_hi - e_lo)[pix] * band / n))
-    area, mx, my, omega = _region_integrals(x0[pix], x1[pix], y0[pix], y1[pix],
-                                            np.minimum(r_in, 1.0), r_out, samples)
+    area, mx, my, omega, fx, fy = _region_integrals(x0[pix], x1[pix], y0[pix], y1[pix],
+                                                    np.minimum(r_in, 1.0), r_out, samples)
     order = np.r_[np.flatnonzero(band == 0), np.flatnonzero(band > 0)]     # band 0 first
     pix, area, mx, my, omega = pix[order], area[order], mx[order], my[order], omega[order]
+    flux = np.stack([fx[order], fy[order], area], axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         cx = np.where(area > 0, mx / area, 0.0)
         cy = np.where(area > 0, my / area, 0.0)
@@ -125,7 +133,7 @@ def micro_pixel_table(m: int, samples: int = 1024) -> dict:
     extra_first = m * m + np.cumsum(extra_count) - extra_count
     prefix = np.zeros((m + 1, m + 1), dtype=np.int64)
     prefix[1:, 1:] = extra_count.reshape(m, m).cumsum(0).cumsum(1)
-    return {"dir": dirs, "weight": area, "solid_angle": omega, "pixel": pix,
+    return {"dir": dirs, "weight": area, "solid_angle": omega, "flux": flux, "pixel": pix,
             "extra_first": extra_first, "extra_count": extra_count, "prefix": prefix,
             "entries": len(pix)}
 
@@ -171,6 +179,21 @@ def table_texture(ctx, m: int):
     tex = _TABLES.get(key)
     if tex is None:
         tex = _TABLES[key] = ctx.texture((entries(m), 1), 4, table_bytes(m), dtype="f4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex
+
+
+def flux_texture(ctx, m: int):
+    """The entries' direction flux (micro_pixel_table's ``flux``, xyz) and solid angle (w) as
+    an (E, 1) RGBA32F texture: how a receiver weights a micro-buffer kept in another normal's
+    frame (Hybrid's far-field sharing; FRAME_NORMALS in shaders/pbgi_gather.glsl)."""
+    import moderngl
+    key = (id(ctx), m, "flux")
+    tex = _TABLES.get(key)
+    if tex is None:
+        t = micro_pixel_table(m)
+        data = np.concatenate([t["flux"], t["solid_angle"][:, None]], axis=1).astype("f4")
+        tex = _TABLES[key] = ctx.texture((entries(m), 1), 4, data.tobytes(), dtype="f4")
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
     return tex
 

@@ -46,7 +46,8 @@ MODES = ("classic", "mipmapped", "hybrid", "envmap")
 CUT_FINDERS = {
     "classic": ("app.pbgi.classic", "ClassicCut", {}),
     "mipmapped": ("app.pbgi.mipmapped", "MipmappedCut", {}),
-    "hybrid": ("app.pbgi.hybrid", "HybridCut", {"omega_tr_factor": "omega_tr_factor"}),
+    "hybrid": ("app.pbgi.hybrid", "HybridCut", {"omega_tr_factor": "omega_tr_factor",
+                                                "parallax_tolerance": "parallax_tolerance"}),
 }
 
 
@@ -68,7 +69,8 @@ MB = 1024.0 * 1024.0
 class RenderParams:
     mode: str = "classic"          # classic | mipmapped | hybrid | envmap
     microbuffer: int = 24          # 8..32
-    omega_tr_factor: float = 32.0  # Hybrid's threshold factor
+    omega_tr_factor: float = 32.0  # Hybrid's threshold factor (exact Hybrid only)
+    parallax_tolerance: float = 1.0  # Hybrid's far-field sharing, micro-pixels; 0 = exact Hybrid
     memory_budget_mb: float = 1024.0
     envmap_face: int = 128         # cube-map face size of the envmap baseline
 
@@ -92,6 +94,11 @@ class RenderParams:
         if isinstance(f, bool) or not isinstance(f, (int, float, np.number)) \
                 or not np.isfinite(f) or f <= 0:
             raise ScanlightError(None, f"omega_tr_factor must be a number > 0, got {f!r}")
+        e = self.parallax_tolerance
+        if isinstance(e, bool) or not isinstance(e, (int, float, np.number)) \
+                or not np.isfinite(e) or not 0 <= e <= 4:
+            raise ScanlightError(None, f"parallax_tolerance must be a number in [0, 4] "
+                                       f"micro-pixels, got {e!r}")
 
 
 @dataclass
@@ -156,6 +163,7 @@ class Relighter:
         self._env_key = None
         self._mb_key = None
         self._mb_stats = {}
+        self._mb_frames = None
         self.last_receivers = None
 
     # -- inputs -----------------------------------------------------------------------------
@@ -310,6 +318,7 @@ class Relighter:
                 extra += self._gather_envmap(params, bufs, n, m, cam_rel, stats)
             else:
                 key = (self._cloud_version, self._asset_version, params.mode, m, tile,
+                       params.omega_tr_factor, params.parallax_tolerance,
                        tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
                        tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n,
                        tuple(id(mt.normal_texture) for mt in materials))
@@ -386,8 +395,9 @@ class Relighter:
                 results.append(res)
                 ctx.finish()
             tg = time.perf_counter()
+            frames = results[-1].get("frames") if results and not reuse else self._mb_frames
             self.gather.run(bufs["receivers"], bufs["materials"], bufs["output"], first, count,
-                            m, cam_rel, mb=self.microbuffers, nodes=self.node_tex)
+                            m, cam_rel, mb=self.microbuffers, nodes=self.node_tex, frames=frames)
             ctx.finish()
             t_gather += time.perf_counter() - tg
             t_cut += tg - tc
@@ -417,6 +427,7 @@ class Relighter:
             self._mb_stats["mb_extra"] = max(r.get("bytes", 0) for r in results) / MB
             stats.update(self._mb_stats)
             self._mb_key = key if per >= n else None
+            self._mb_frames = results[-1].get("frames") if results else None
         extra = reserve + state_per * per
         stats.setdefault("mb_extra", extra / MB)
         stats.update(ms_cut=t_cut * 1e3, ms_gather=t_gather * 1e3, batch_receivers=per,

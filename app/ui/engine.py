@@ -370,6 +370,7 @@ class ViewerEngine:
         s = self.session.settings
         params = self.render_params_cls(mode=s["pbgi.mode"], microbuffer=s["pbgi.microbuffer"],
                                         omega_tr_factor=s["pbgi.omega_tr_factor"],
+                                        parallax_tolerance=s["pbgi.parallax_tolerance"],
                                         memory_budget_mb=s["pbgi.memory_budget_mb"])
         try:
             res = self.relighter.render(camera, self.session.materials, params, tile=tile)

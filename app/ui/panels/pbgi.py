@@ -1,4 +1,5 @@
-"""PBGI: mode, micro-buffer, render scales, Hybrid's Omega_tr factor, live stats of the gather."""
+"""PBGI: mode, micro-buffer, render scales, Hybrid's Omega_tr factor and parallax tolerance,
+live stats of the gather."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from imgui_bundle import imgui
 from app.ui import widgets
 
 KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.render_scale", "pbgi.preview_scale",
-        "pbgi.omega_tr_factor", "pbgi.memory_budget_mb", "pbgi.frame_budget_ms")
+        "pbgi.omega_tr_factor", "pbgi.parallax_tolerance", "pbgi.memory_budget_mb",
+        "pbgi.frame_budget_ms")
 
 
 def draw(ui) -> None:

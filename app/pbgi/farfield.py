@@ -1,0 +1,245 @@
+"""Far-field sharing: Hybrid PBGI's shared walk on a CPU.
+
+Why: on llvmpipe the paper's Hybrid speed-up (coherent breadth-first refinement on thousands of
+GPU threads) does not exist - all three modes reach the same cut, and finding and rasterising
+that cut per receiver is 97% of a frame (measured; the walk alone is 13-18% of it). The only way
+to do less per receiver is to share the *result* of the walk between neighbours, and the part of
+the scene where that is exact up to a tolerance is the far field:
+
+* receivers are grouped into aligned square blocks of the pixel grid (2x2 .. 2^L x 2^L; in the
+  renderer's Z-order a block is a run of consecutive receivers). A block is usable when its
+  receivers' normals lie within ``tol`` of their mean (cone half-angle) - ``tol`` = the parallax
+  tolerance ``eps`` micro-pixels, a micro-pixel being 2 / M radians at its narrowest; each receiver
+  takes the coarsest usable block above it (none: it walks alone, as in Classic);
+* the block's ball: centre = the mean of its receivers' positions, D = rho / tol with rho the
+  largest distance of a receiver from the centre. A BSH node whose sphere lies outside the ball
+  is *far*: seen from any receiver of the block rather than from the centre, its direction moves by
+  less than rho / D = tol, i.e. less than eps micro-pixels. A parent's sphere contains its
+  children's (app/pbgi/hierarchy.py), so a far node's sub-tree is far, and the far/near split of
+  the tree is a partition: every leaf is drawn exactly once, by the block or by the receiver;
+* per block, one Classic walk of the far field only, from the centre, in the frame of the cone
+  axis (shaders/pbgi_classic.glsl with SHARE_SPLIT 1), into a block micro-buffer;
+* per receiver: copy the block's buffer into its own (shaders/pbgi_share_merge.glsl: each entry
+  takes the block entry its direction falls in), then a Classic walk of the near field only
+  (SHARE_SPLIT 2) into it, depth tested. Then the gather, the same as every mode's.
+
+The approximation: far nodes are drawn from the block centre (<= eps micro-pixels off), in the
+block's frame (the receiver's hemisphere differs by <= tol at the horizon; directions in that
+sliver read the rim entry below them), and their depth keys are measured from the centre when a
+near node competes with them. eps = 0 turns the sharing off. tests/test_pbgi_farfield.py bounds
+the image difference to Classic and to the CPU reference; the README has the figures.
+
+Memory: the block micro-buffers (one row of entries(M) texels per block) are the extra memory;
+blocks are processed in chunks sized from the budget, so it stays bounded.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from app.pbgi.classic import ClassicCut
+from app.pbgi.microbuffer import ENTRY_BYTES, MicroBuffers, entries
+from app.render.programs import load_compute
+
+NONE = 0xFFFFFFFF
+GROUP = 64
+DEFAULT_TOLERANCE = 1.0       # eps, in micro-pixels
+DEFAULT_MAX_LEVEL = 3         # blocks up to 8 x 8 receivers
+DEFAULT_MAX_CONE = 0.1        # radians: the most a receiver's normal may differ from its block's
+MIN_BLOCK = 4                 # receivers; a smaller block shares too little to pay its walk
+INF = 3.0e38
+
+
+def micro_pixel_angle(m: int) -> float:
+    """Narrowest angular size of a micro-pixel: 2 / M radians (at the zenith of the disc)."""
+    return 2.0 / m
+
+
+def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray, width: int,
+                  m: int, tolerance: float, max_level: int = DEFAULT_MAX_LEVEL,
+                  max_cone: float = DEFAULT_MAX_CONE, min_block: int = MIN_BLOCK) -> dict:
+    """Per receiver, the coarsest usable block (see the module docstring).
+
+    Returns block_of (n,) uint32 (NONE: walks alone), and per block: centre (B, 3), axis (B, 3),
+    radius D of its ball (B,), level (B,), size (B,) receivers, first (B,) receiver.
+    """
+    n = len(pixels)
+    block_of = np.full(n, NONE, np.uint32)
+    empty = {"block_of": block_of, "centre": np.zeros((0, 3)), "axis": np.zeros((0, 3)),
+             "ball": np.zeros(0), "level": np.zeros(0, np.int64), "size": np.zeros(0, np.int64),
+             "first": np.zeros(0, np.int64)}
+    if n == 0 or tolerance <= 0 or max_level < 1:
+        return empty
+    tol = tolerance * micro_pixel_angle(m)
+    px = np.asarray(pixels, np.int64)
+    x, y = px % width, px // width
+    p = np.asarray(positions, np.float64)
+    nrm = np.asarray(normals, np.float64)
+    chosen_level = np.zeros(n, np.int64)
+    chosen_key = np.full(n, -1, np.int64)
+    for level in range(1, max_level + 1):
+        key = (y >> level) * (width + 1) + (x >> level)
+        uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+        k = len(uniq)
+        c = np.stack([np.bincount(inv, p[:, j], k) for j in range(3)], 1) / cnt[:, None]
+        a = np.stack([np.bincount(inv, nrm[:, j], k) for j in range(3)], 1)
+        a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-30)
+        cos = np.einsum("ij,ij->i", nrm, a[inv])
+        half = np.zeros(k)
+        np.maximum.at(half, inv, np.arccos(np.clip(cos, -1.0, 1.0)))
+        ok = (half <= max_cone) & (cnt >= min_block)
+        take = ok[inv]
+        chosen_level[take] = level
+        chosen_key[take] = key[take]
+    shared = chosen_key >= 0
+    if not shared.any():
+        return empty
+    # blocks in receiver order (Z-order: each block is a run of consecutive receivers)
+    code = chosen_level * (1 << 40) + chosen_key
+    idx = np.flatnonzero(shared)
+    _, first_pos, inv = np.unique(code[idx], return_index=True, return_inverse=True)
+    order = np.argsort(idx[first_pos], kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    bid = rank[inv]
+    nb = len(order)
+    block_of[idx] = bid.astype(np.uint32)
+    cnt = np.bincount(bid, minlength=nb)
+    c = np.stack([np.bincount(bid, p[idx, j], nb) for j in range(3)], 1) / cnt[:, None]
+    a = np.stack([np.bincount(bid, nrm[idx, j], nb) for j in range(3)], 1)
+    a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-30)
+    rho = np.zeros(nb)
+    np.maximum.at(rho, bid, np.linalg.norm(p[idx] - c[bid], axis=1))
+    first = np.full(nb, n, np.int64)
+    np.minimum.at(first, bid, idx)
+    level = np.zeros(nb, np.int64)
+    level[bid] = chosen_level[idx]
+    return {"block_of": block_of, "centre": c, "axis": a, "ball": np.maximum(rho, 1e-9) / tol,
+            "level": level, "size": cnt, "first": first}
+
+
+class FarFieldShare:
+    """Fills a batch's micro-buffers with far-field sharing; ``fill`` has the cut-finder
+    interface (app/pbgi/renderer.py) with width= and budget_bytes= (needs_tile)."""
+
+    needs_tile = True
+
+    def __init__(self, ctx, tolerance: float = DEFAULT_TOLERANCE,
+                 max_level: int = DEFAULT_MAX_LEVEL, max_cone: float = DEFAULT_MAX_CONE,
+                 share_fraction: float = 0.25):
+        if not tolerance > 0:
+            raise ValueError(f"parallax tolerance must be > 0, got {tolerance!r}")
+        self.ctx = ctx
+        self.tolerance, self.max_level = float(tolerance), int(max_level)
+        self.max_cone = float(max_cone)
+        self.share_fraction = float(share_fraction)
+        self.far = ClassicCut(ctx, defines={"SHARE_SPLIT": 1})
+        self.near = ClassicCut(ctx, defines={"SHARE_SPLIT": 2})
+        self.merge = load_compute(ctx, "pbgi_share_merge.glsl")
+        self.block_mb = MicroBuffers(ctx)
+        self._bufs = []
+        self.frames = None            # per batch receiver: its micro-buffer's frame normal
+
+    @staticmethod
+    def bytes_per_receiver(m: int) -> int:
+        """Resume state, ball, frame and block of a receiver, plus a quarter block row (blocks
+        hold >= 4)."""
+        return 16 + 32 + 16 + 4 + (entries(m) * ENTRY_BYTES + 64) // MIN_BLOCK
+
+    def _buffer(self, data: np.ndarray):
+        b = self.ctx.buffer(np.ascontiguousarray(data).tobytes())
+        self._bufs.append(b)
+        return b
+
+    def fill(self, mb: MicroBuffers, receivers, first: int, count: int, m: int, nodes,
+             cell_size: float = 1.0, width: int = 1, budget_bytes: float = 1 << 30) -> dict:
+        ctx = self.ctx
+        t0 = time.perf_counter()
+        rec = np.frombuffer(receivers.read(size=64 * count, offset=64 * first),
+                            np.float32).reshape(count, 16)
+        pixels = rec[:, 3].copy().view(np.uint32)
+        blocks = choose_blocks(pixels, rec[:, 0:3], rec[:, 4:7], width, m, self.tolerance,
+                               self.max_level, self.max_cone)
+        nb = len(blocks["ball"])
+        block_of = blocks["block_of"]
+        t1 = time.perf_counter()
+        row_bytes = entries(m) * ENTRY_BYTES
+        cap = int(max(1, min(nb, self.share_fraction * budget_bytes // row_bytes,
+                             int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)))))
+        far_visited = np.zeros(max(nb, 1), np.int64)
+        far_done = np.ones(max(nb, 1), bool)
+        rounds = chunks = 0
+        peak_bytes = 0
+        try:
+            if nb:
+                pseudo = np.zeros((nb, 16), np.float32)
+                pseudo[:, 0:3] = blocks["centre"]
+                pseudo[:, 4:7] = blocks["axis"]
+                pseudo_buf = self._buffer(pseudo)
+                balls = np.zeros((nb, 2, 4), np.float32)
+                balls[:, 0, 0:3] = blocks["centre"]
+                balls[:, 0, 3] = blocks["ball"]
+                balls[:, 1, 0:3] = blocks["axis"]
+                block_buf = self._buffer(block_of)
+                ends = np.r_[blocks["first"][1:], count]
+                for b0 in range(0, nb, cap):
+                    b1 = min(nb, b0 + cap)
+                    chunks += 1
+                    self.block_mb.prepare(m, cap, b1 - b0)
+                    ball_buf = self._buffer(balls[b0:b1])
+                    res = self.far.fill(self.block_mb, pseudo_buf, b0, b1 - b0, m, nodes,
+                                        cell_size, share=ball_buf)
+                    far_visited[b0:b1] = res["visited"]
+                    far_done[b0:b1] = res["done"]
+                    rounds += res["rounds"]
+                    # copy the chunk's block buffers into its receivers' micro-buffers
+                    r0, r1 = int(blocks["first"][b0]), int(ends[b1 - 1])
+                    block_buf.bind_to_storage_buffer(3)
+                    mb.bind()
+                    self.block_mb.image.bind_to_image(1, read=True, write=False)
+                    pr = self.merge
+                    pr["u_begin"], pr["u_end"] = r0, r1
+                    pr["u_block0"], pr["u_block1"] = b0, b1
+                    pr.run((r1 - r0 + GROUP - 1) // GROUP)
+                    ctx.memory_barrier()
+                    peak_bytes = max(peak_bytes, self.block_mb.nbytes)
+            t2 = time.perf_counter()
+            near_balls = np.zeros((count, 2, 4), np.float32)
+            near_balls[:, 0, 3] = INF
+            near_balls[:, 1, 0:3] = rec[:, 4:7]
+            has = block_of != NONE
+            near_balls[has, 0, 0:3] = blocks["centre"][block_of[has]]
+            near_balls[has, 0, 3] = blocks["ball"][block_of[has]]
+            near_balls[has, 1, 0:3] = blocks["axis"][block_of[has]]
+            res = self.near.fill(mb, receivers, first, count, m, nodes, cell_size,
+                                 share=self._buffer(near_balls))
+            if self.frames is not None:
+                self.frames.release()
+            self.frames = ctx.buffer(np.ascontiguousarray(near_balls[:, 1]).tobytes())
+            t3 = time.perf_counter()
+        finally:
+            for b in self._bufs:
+                b.release()
+            self._bufs = []
+        done = res["done"].copy()
+        if nb:
+            done[has] &= far_done[block_of[has]]
+        bsize = blocks["size"]
+        return {"rounds": rounds + res["rounds"], "visited": res["visited"], "done": done,
+                "cut_short": res.get("cut_short", 0), "tests": res.get("tests"),
+                "bytes": peak_bytes + 52 * count, "frames": self.frames,
+                "extra": {"share_blocks": nb, "share_chunks": chunks, "share_receivers": int(has.sum()),
+                          "share_block_visits": int(far_visited[:nb].sum()),
+                          "ms_share_blocks": (t1 - t0) * 1e3, "ms_share_far": (t2 - t1) * 1e3,
+                          "ms_share_near": (t3 - t2) * 1e3},
+                "peaks": {"share_block_max": int(bsize.max()) if nb else 0}}
+
+    def release(self) -> None:
+        for c in (self.far, self.near):
+            c.release()
+        self.block_mb.release()
+        if self.frames is not None:
+            self.frames.release()
+            self.frames = None

@@ -1,0 +1,31 @@
+// Far-field sharing (Hybrid, app/pbgi/farfield.py): copy a block's far-field micro-buffer into the
+// micro-buffers of its receivers, before each receiver walks its own near field into it (depth
+// tested, so a near node in front of a far one wins). Every receiver of a block keeps its
+// micro-buffer in the block's frame (the frame of its normal-cone axis), so the copy is entry for
+// entry; the gather weights each entry with the receiver's own cosine (FRAME_NORMALS in
+// pbgi_gather.glsl). Receivers without a block (block index SHARE_NONE) are left alone.
+#include "lib/microbuffer.glsl"
+
+layout(local_size_x = 64) in;
+
+#define SHARE_NONE 0xffffffffu
+layout(rg32ui, binding = 1) uniform readonly uimage2D share_image;   // one row per block
+layout(std430, binding = 3) readonly buffer BlockOf { uint block_of[]; };  // per batch receiver
+
+uniform uint u_begin;          // batch receivers [u_begin, u_end) are merged by this dispatch
+uniform uint u_end;
+uniform uint u_block0;         // blocks [u_block0, u_block1) are in share_image, from row 0
+uniform uint u_block1;
+
+void main() {
+    uint i = u_begin + gl_GlobalInvocationID.x;
+    if (i >= u_end) return;
+    uint b = block_of[i];
+    if (b == SHARE_NONE || b < u_block0 || b >= u_block1) return;
+    int row = int(b - u_block0);
+    uint mm = mb_entries();
+    for (uint k = 0u; k < mm; ++k) {
+        uvec2 v = imageLoad(share_image, ivec2(int(k), row)).xy;
+        if (v.y != MB_EMPTY) imageStore(mb_image, ivec2(int(k), int(i)), uvec4(v, 0u, 0u));
+    }
+}

@@ -2,7 +2,8 @@
 // Per case i: params[13 i .. 13 i + 12] in the packing of lib/principled.glsl, dirs[5 i + k]
 // = L, V, N, X, Y (xyz). Output: out_data[2 i] = (f.rgb, 1) and out_data[2 i + 1] = (0, 0, 0, 1)
 // for u_mode 0 (given X, Y), 1 (principled_brdf_iso: frame from orthonormal_basis(N)) and
-// 3 (as 0, parameters unpacked with principled_from_vec4s);
+// 3 (as 0, parameters unpacked with principled_from_vec4s), 4 (principled_prepare +
+// principled_brdf_prepared, the gather's split);
 // for u_mode 2 the two outputs are orthonormal_basis(N) = (t, 1), (b, 1).
 // w = 1 marks a completed invocation.
 #include "lib/principled.glsl"
@@ -35,7 +36,9 @@ void main() {
         out_data[2u * i + 1u] = vec4(b, 1.0);
         return;
     }
-    vec3 f = u_mode == 1 ? principled_brdf_iso(p, L, V, N) : principled_brdf(p, L, V, N, X, Y);
+    vec3 f = u_mode == 1 ? principled_brdf_iso(p, L, V, N)
+           : u_mode == 4 ? principled_brdf_prepared(principled_prepare(p, V, N, X, Y), L)
+           : principled_brdf(p, L, V, N, X, Y);
     out_data[2u * i] = vec4(f, 1.0);
     out_data[2u * i + 1u] = vec4(0.0, 0.0, 0.0, 1.0);
 }

@@ -60,10 +60,12 @@ void main() {
 #ifdef FRAME_NORMALS
     vec3 A = frames[i].xyz;
     orthonormal_basis(A, T, B);
+    vec3 n_local = vec3(dot(N, T), dot(N, B), dot(N, A));   // the receiver's normal, A's frame
 #else
     vec3 A = N;
 #endif
 
+    PrincipledPrepared Q = principled_prepare(P, V, N, X, Y);
     uint mm = mb_entries();
     vec3 sum = vec3(0.0);
     uint k;
@@ -73,7 +75,7 @@ void main() {
         vec3 w = T * tb.x + B * tb.y + A * tb.z;
 #ifdef FRAME_NORMALS
         vec4 fl = texelFetch(mb_flux_tex, ivec2(int(k), 0), 0);
-        float weight = max(dot(N, T * fl.x + B * fl.y + A * fl.z), 0.0);
+        float weight = max(dot(n_local, fl.xyz), 0.0);
         if (weight <= 0.0) continue;
 #else
         float weight = tb.w;
@@ -86,7 +88,7 @@ void main() {
         if (node == MB_EMPTY) continue;
         vec3 L = tnode_color(node);
 #endif
-        sum += principled_brdf(P, w, V, N, X, Y) * L * weight;
+        sum += principled_brdf_prepared(Q, w) * L * weight;
     }
     out_rgba[receiver_pixel(rid)] = vec4(sum, k == mm ? 1.0 : -1.0);
 }

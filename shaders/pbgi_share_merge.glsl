@@ -3,7 +3,9 @@
 // tested, so a near node in front of a far one wins). Every receiver of a block keeps its
 // micro-buffer in the block's frame (the frame of its normal-cone axis), so the copy is entry for
 // entry; the gather weights each entry with the receiver's own cosine (FRAME_NORMALS in
-// pbgi_gather.glsl). Receivers without a block (block index SHARE_NONE) are left alone.
+// pbgi_gather.glsl). The renderer does not empty these micro-buffers first (the copy writes every
+// entry, empty ones included); a dispatch with u_clear_unshared empties the rows of receivers
+// without a block (block index SHARE_NONE) instead.
 #include "lib/microbuffer.glsl"
 
 layout(local_size_x = 64) in;
@@ -16,16 +18,21 @@ uniform uint u_begin;          // batch receivers [u_begin, u_end) are merged by
 uniform uint u_end;
 uniform uint u_block0;         // blocks [u_block0, u_block1) are in share_image, from row 0
 uniform uint u_block1;
+uniform bool u_clear_unshared;  // empty the rows of unshared receivers (no copy)
 
 void main() {
     uint i = u_begin + gl_GlobalInvocationID.x;
     if (i >= u_end) return;
     uint b = block_of[i];
+    uint mm = mb_entries();
+    if (u_clear_unshared) {
+        if (b != SHARE_NONE) return;
+        for (uint k = 0u; k < mm; ++k)
+            imageStore(mb_image, ivec2(int(k), int(i)), uvec4(MB_EMPTY, MB_EMPTY, 0u, 0u));
+        return;
+    }
     if (b == SHARE_NONE || b < u_block0 || b >= u_block1) return;
     int row = int(b - u_block0);
-    uint mm = mb_entries();
-    for (uint k = 0u; k < mm; ++k) {
-        uvec2 v = imageLoad(share_image, ivec2(int(k), row)).xy;
-        if (v.y != MB_EMPTY) imageStore(mb_image, ivec2(int(k), int(i)), uvec4(v, 0u, 0u));
-    }
+    for (uint k = 0u; k < mm; ++k)
+        imageStore(mb_image, ivec2(int(k), int(i)), imageLoad(share_image, ivec2(int(k), row)));
 }

@@ -133,6 +133,11 @@ def test_glsl_unpack_and_iso_variants(gl_eval):
     np.testing.assert_allclose(basis[:, 0, :3], t_np, atol=2e-6)
     np.testing.assert_allclose(basis[:, 1, :3], b_np, atol=2e-6)
 
+    # the gather's split (principled_prepare once per receiver, then per direction): the same
+    # operations in the same order, so the same numbers
+    split = gl_eval(P, L, V, N, X, Y, mode=4)[:, 0, :3]
+    np.testing.assert_allclose(split, full, rtol=4 * EPS32, atol=0)
+
     iso = gl_eval(P, L, V, N, X, Y, mode=1)[:, 0, :3]
     f = B.principled_brdf(P, L, V, N, basis[:, 0, :3], basis[:, 1, :3])
     pos = f.max(axis=1) > 0

@@ -63,6 +63,10 @@ class HybridCut:
         else:
             self.engine = PairRefiner(ctx, omega_tr_factor=omega_tr_factor, **kw)
 
+    @property
+    def clears_microbuffers(self) -> bool:
+        return getattr(self.engine, "clears_microbuffers", False)
+
     def bytes_per_receiver(self, m: int) -> int:
         return self.engine.bytes_per_receiver(m)
 

@@ -241,10 +241,11 @@ class MicroBuffers:
         self.table = table_texture(self.ctx, m)
         self.index = index_texture(self.ctx, m)
         self.bind()
-        self._clear["u_width"] = width
-        self._clear["u_count"] = receivers
-        self._clear.run((width + 63) // 64, receivers)
-        self.ctx.memory_barrier()
+        if receivers > 0:
+            self._clear["u_width"] = width
+            self._clear["u_count"] = receivers
+            self._clear.run((receivers + 63) // 64)
+            self.ctx.memory_barrier()
 
     def bind(self, image_unit: int = 0, table_unit: int = 5, index_unit: int = 6) -> None:
         self.image.bind_to_image(image_unit, read=True, write=True)

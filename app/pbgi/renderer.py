@@ -41,6 +41,7 @@ MODES = ("classic", "mipmapped", "hybrid", "envmap")
 #   needs_tile = True: fill also gets width= (the tile width) and budget_bytes=;
 #   bytes_per_receiver(m): per-receiver memory besides the micro-buffer (batch sizing);
 #   reserve_bytes(budget): memory taken whatever the batch size (subtracted from the budget);
+#   clears_microbuffers = True: fill writes every entry of its rows, so they are not emptied first;
 #   GL refusing memory: fill raises its module's AllocationError (or MemoryError); the
 #       renderer halves the batch and retries (stats "tile_halvings").
 CUT_FINDERS = {
@@ -381,7 +382,9 @@ class Relighter:
             if not reuse:
                 self._mb_key = None
                 try:
-                    self.microbuffers.prepare(m, per, count)
+                    # a finder that writes every entry itself needs no emptied buffers
+                    self.microbuffers.prepare(
+                        m, per, 0 if getattr(cut, "clears_microbuffers", False) else count)
                     res = cut.fill(self.microbuffers, bufs["receivers"], first, count, m,
                                    self.node_tex, self.hierarchy.cell_size, **extra_kw)
                 except refused as exc:

@@ -153,6 +153,74 @@ vec3 principled_brdf(PrincipledParams p, vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)
          + gs * ds * fs + vec3(0.25 * clearcoat * gr * fr * dr);
 }
 
+// The same BRDF split in two for loops over many L with one V (the final gather): everything
+// that depends only on the material, N, X, Y and V is computed once by principled_prepare.
+// principled_brdf_prepared(q, L) equals principled_brdf(p, L, V, N, X, Y) (same operations in
+// the same order; tests/test_brdf.py checks it).
+struct PrincipledPrepared {
+    vec3 N, V, X, Y;
+    float n_dot_v, metallic, roughness, subsurface, clearcoat, fv, ax, ay, gs_v, gr_v, cc_alpha;
+    vec3 base, spec0, sheen_w;   // sheen_w = sheen * sheen_color
+};
+
+PrincipledPrepared principled_prepare(PrincipledParams p, vec3 V, vec3 N, vec3 X, vec3 Y) {
+    PrincipledPrepared q;
+    q.N = N; q.V = V; q.X = X; q.Y = Y;
+    q.n_dot_v = dot(N, V);
+    q.base = clamp(p.base_color, 0.0, 1.0);
+    q.subsurface = clamp(p.subsurface, 0.0, 1.0);
+    q.metallic = clamp(p.metallic, 0.0, 1.0);
+    float specular = clamp(p.specular, 0.0, 1.0);
+    float specular_tint = clamp(p.specular_tint, 0.0, 1.0);
+    q.roughness = clamp(p.roughness, 0.0, 1.0);
+    float anisotropic = clamp(p.anisotropic, 0.0, 1.0);
+    float sheen = clamp(p.sheen, 0.0, 1.0);
+    float sheen_tint = clamp(p.sheen_tint, 0.0, 1.0);
+    q.clearcoat = clamp(p.clearcoat, 0.0, 1.0);
+    float clearcoat_gloss = clamp(p.clearcoat_gloss, 0.0, 1.0);
+    vec3 base = q.base;
+    float lum = 0.3 * base.r + 0.6 * base.g + 0.1 * base.b;
+    vec3 tint = lum > 0.0 ? base / lum : vec3(1.0);
+    q.spec0 = mix(specular * 0.08 * mix(vec3(1.0), tint, specular_tint), base, q.metallic);
+    q.sheen_w = sheen * mix(vec3(1.0), tint, sheen_tint);
+    q.fv = schlick_weight(q.n_dot_v);
+    float aspect = sqrt(1.0 - 0.9 * anisotropic);
+    float r2 = q.roughness * q.roughness;
+    q.ax = max(PRINCIPLED_MIN_ALPHA, r2 / aspect);
+    q.ay = max(PRINCIPLED_MIN_ALPHA, r2 * aspect);
+    q.gs_v = principled_smith_ggx_aniso(q.n_dot_v, dot(V, X), dot(V, Y), q.ax, q.ay);
+    q.gr_v = principled_smith_ggx(q.n_dot_v, 0.25);
+    q.cc_alpha = mix(0.1, 0.001, clearcoat_gloss);
+    return q;
+}
+
+vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {
+    vec3 N = q.N, V = q.V;
+    float n_dot_l = dot(N, L);
+    float n_dot_v = q.n_dot_v;
+    if (n_dot_l <= 0.0 || n_dot_v <= 0.0) return vec3(0.0);
+    vec3 H = normalize(L + V);
+    float n_dot_h = dot(N, H);
+    float l_dot_h = dot(L, H);
+    float fl = schlick_weight(n_dot_l), fv = q.fv;
+    float fd90 = 0.5 + 2.0 * l_dot_h * l_dot_h * q.roughness;
+    float fd = mix(1.0, fd90, fl) * mix(1.0, fd90, fv);
+    float fss90 = l_dot_h * l_dot_h * q.roughness;
+    float fss = mix(1.0, fss90, fl) * mix(1.0, fss90, fv);
+    float ss = 1.25 * (fss * (1.0 / max(n_dot_l + n_dot_v, 1e-6) - 0.5) + 0.5);
+    float ds = principled_gtr2_aniso(n_dot_h, dot(H, q.X), dot(H, q.Y), q.ax, q.ay);
+    float fh = schlick_weight(l_dot_h);
+    vec3 fs = mix(q.spec0, vec3(1.0), fh);
+    float gs = principled_smith_ggx_aniso(n_dot_l, dot(L, q.X), dot(L, q.Y), q.ax, q.ay) * q.gs_v;
+    vec3 f_sheen = fh * q.sheen_w;
+    vec3 nxh = cross(N, H);
+    float dr = principled_gtr1(n_dot_h, dot(nxh, nxh), q.cc_alpha);
+    float fr = mix(0.04, 1.0, fh);
+    float gr = principled_smith_ggx(n_dot_l, 0.25) * q.gr_v;
+    return (INV_PI * mix(fd, ss, q.subsurface) * q.base + f_sheen) * (1.0 - q.metallic)
+         + gs * ds * fs + vec3(0.25 * q.clearcoat * gr * fr * dr);
+}
+
 // Convenience for callers without a tangent (builds the frame on every call; hoist
 // orthonormal_basis out of loops that share N).
 vec3 principled_brdf_iso(PrincipledParams p, vec3 L, vec3 V, vec3 N) {

@@ -113,8 +113,9 @@ SETTINGS: tuple[Setting, ...] = (
             "(refined in tiles when the view is idle).", 0.125, 1.0, "x"),
     Setting("pbgi.preview_scale", "float", 0.25, "GI resolution while the camera or a slider "
             "moves; upsampled with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x"),
-    Setting("pbgi.omega_tr_factor", "float", 32.0, "Hybrid: a node is refined per pixel once "
-            "its solid angle drops below this factor times the micro-pixel's.", 1.0, 256.0,
+    Setting("pbgi.omega_tr_factor", "float", 32.0, "Exact Hybrid (parallax tolerance 0): a node "
+            "is refined per pixel once its solid angle drops below this factor times the "
+            "micro-pixel's.", 1.0, 256.0,
             "x", label="Omega_tr factor", log=True),
     Setting("pbgi.parallax_tolerance", "float", 1.0, "Hybrid: the far field is walked once per "
             "block of pixels where seen from any pixel of the block it moves by less than this "

@@ -5,18 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.demo.room import default_object, default_views
-from app.io.formats import object_from_dict, placed_mesh
+from app.demo.room import default_views
 from app.material import Material
-from app.pbgi.renderer import Relighter, RenderParams
-
-
-@pytest.fixture(scope="module")
-def demo_relighter(demo):
-    r = Relighter()
-    r.set_cloud(demo.gt)
-    r.set_asset(placed_mesh(object_from_dict(default_object("sphere"), ".")))
-    return r
+from app.pbgi.renderer import RenderParams
 
 
 @pytest.mark.parametrize("view", ["closeup", "whole"])

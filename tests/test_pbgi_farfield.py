@@ -11,7 +11,7 @@ import pytest
 import pbgi_scenes as S
 from app.pbgi.farfield import NONE, choose_blocks, micro_pixel_angle
 from app.pbgi.gmip import z_order
-from app.pbgi.renderer import Relighter, RenderParams
+from app.pbgi.renderer import RenderParams
 
 
 def _grid_receivers(w: int, h: int, curvature: float = 0.2, pixel: float = 0.002):
@@ -60,14 +60,6 @@ def test_blocks_are_aligned_z_runs_with_narrow_cones_and_parallax_balls():
     assert (choose_blocks(px, pos, nrm, w, m, 0.0, 3)["block_of"] == NONE).all()
 
 
-@pytest.fixture(scope="module")
-def furnace():
-    r = Relighter()
-    r.set_cloud(S.furnace_shell(20000, radius=2.0, radiance=1.0))
-    r.set_asset(S.sphere((0.0, 0.0, 0.0), 0.5, subdivisions=4))
-    return r
-
-
 def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     """Constant radiance all around: a node lost between the far walk of a block and the near
     walks of its receivers would leave a dark hole. Per pixel, Hybrid with sharing stays within
@@ -89,16 +81,6 @@ def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     pix, cos_v = _view_cos(furnace, cam, mat)
     expect = _albedo_of_cos(brdf.pack_params(mat), cos_v)
     assert abs((res.image.reshape(-1, 4)[pix, 0] / expect).mean() - 1) < 0.005
-
-
-@pytest.fixture(scope="module")
-def demo_relighter(demo):
-    from app.demo.room import default_object
-    from app.io.formats import object_from_dict, placed_mesh
-    r = Relighter()
-    r.set_cloud(demo.gt)
-    r.set_asset(placed_mesh(object_from_dict(default_object(), ".")))
-    return r
 
 
 def _rel_errors(a, b):

@@ -19,16 +19,6 @@ from app.pbgi.renderer import Relighter, RenderParams
 MODES = ("classic", "mipmapped", "hybrid")
 
 
-@pytest.fixture(scope="module")
-def demo_relighter(demo):
-    from app.demo.room import default_object
-    from app.io.formats import object_from_dict, placed_mesh
-    r = Relighter()
-    r.set_cloud(demo.gt)
-    r.set_asset(placed_mesh(object_from_dict(default_object(), ".")))
-    return r
-
-
 def _receivers(r, cam):
     """The demo G-buffer's receivers in Z-order (as the renderer hands them to these modes)."""
     rec = r.gbuffer.render(cam, [S.diffuse(0.6)])["receivers"]

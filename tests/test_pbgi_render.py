@@ -18,14 +18,6 @@ from app.pbgi.renderer import Relighter, RenderParams, recolor
 FURNACE_CAM = S.look((0.0, 0.2, 1.6), (0.0, 0.0, 0.0), 24, 45)
 
 
-@pytest.fixture(scope="module")
-def furnace():
-    r = Relighter()
-    r.set_cloud(S.furnace_shell(20000, radius=2.0, radiance=1.0))
-    r.set_asset(S.sphere((0.0, 0.0, 0.0), 0.5, subdivisions=4))
-    return r
-
-
 def _albedo_of_cos(params, cos_v: np.ndarray) -> np.ndarray:
     """The BRDF's directional albedo (numpy, Monte Carlo) at view angles cos_v, interpolated
     from a table: an isotropic material's albedo depends on the view angle only."""

@@ -1,6 +1,7 @@
 """Mipmapped PBGI (paper Section 5.2.1): the BSH walk is shared between neighbouring receivers by
 refining (node, pixel) pairs over a G-buffer pyramid (app/pbgi/gmip.py), then finished per
-receiver. Hybrid PBGI (app/pbgi/hybrid.py) is the same engine with Omega_tr > 0.
+receiver. The exact Hybrid PBGI (app/pbgi/hybrid.py, parallax tolerance 0) is the same engine
+with Omega_tr > 0; the default Hybrid shares the far field instead (app/pbgi/farfield.py).
 
 Same interface as app.pbgi.classic.ClassicCut - ``fill`` fills the micro-buffers of one batch of
 receivers - extended with keyword arguments (the renderer passes them to cut finders that set

@@ -277,8 +277,11 @@ def test_table3_records_and_markdown(capsys):
         assert set(rec["case"]) == {"mode", "viewport", "microbuffer", "view"}
         assert rec["metrics"]["ms"] > 0 and rec["metrics"]["completed"] == 1.0
         assert "mb" in rec["metrics"]
+        diff = rec["metrics"]["diff_mean_pct"]                 # against Classic's own image
+        assert diff == 0.0 if rec["case"]["mode"] != "hybrid" else diff < 20.0
     out = capsys.readouterr().out
     assert "classic / hybrid" in out and "| 16x16 |" in out and "closeup 8x8" in out
+    assert "hybrid vs classic: mean / 99th-percentile per-pixel difference (%)" in out
 
 
 def test_render_cli_modes_give_classic_s_image(tmp_path):

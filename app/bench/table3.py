@@ -12,7 +12,9 @@ case.microbuffer, case.view (closeup / whole); metrics.ms (the whole render: G-b
 gather, measured with ctx.finish()), metrics.mb (the mode's *extra* memory: what the cut finder
 allocates besides the micro-buffers, the G-buffer and the BSH, which every mode shares - the
 paper's Table 3 bottom; for Classic its resume state), plus ms_cut, ms_gather, mb_total,
-completed, batches, tile_halvings, nodes_visited and, for Mipmapped/Hybrid, the pair counts,
+completed, batches, tile_halvings, nodes_visited, the accuracy side of the trade when Classic ran in
+the same cell (diff_mean_pct / diff_p99_pct: per-pixel relative difference to Classic's image, and
+mean_ratio) and, for Mipmapped/Hybrid, the pair counts,
 the phases' times and mb_extra_used (the part of the pair streams actually filled). After the plain table it prints the
 markdown table laid out like the paper's (one block per mode, rows = viewports, columns = view x
 micro-buffer), the classic/hybrid ratio per cell and the memory blocks.
@@ -25,6 +27,8 @@ from __future__ import annotations
 
 import logging
 import time
+
+import numpy as np
 
 from app.bench.records import record
 
@@ -150,8 +154,11 @@ def run(args) -> list[dict]:
                             best[mode] = (res, wall)
                 for mode in args.modes:
                     res, wall = best[mode]
+                    metrics = _metrics(res.stats, wall)
+                    if "classic" in best:
+                        metrics.update(difference(best["classic"][0].image, res.image))
                     records.append(record("table3", {"mode": mode, "viewport": size, "microbuffer": m,
-                                                     "view": view}, _metrics(res.stats, wall)))
+                                                     "view": view}, metrics))
                 log.info("table3 %dx%d M=%d %s: %s", size, size, m, view,
                          ", ".join(f"{k} {best[k][0].stats['ms']:.0f} ms" for k in args.modes))
     text = markdown(records)
@@ -160,6 +167,21 @@ def run(args) -> list[dict]:
         from pathlib import Path
         Path(args.markdown).write_text(text + "\n")
     return records
+
+
+def difference(reference: np.ndarray, image: np.ndarray) -> dict:
+    """How far a mode's image is from Classic's in the same cell (the accuracy side of the
+    trade): per object pixel, |rgb - rgb_classic|_1 / |rgb_classic|_1; its mean and 99th
+    percentile in percent, and the mean radiance ratio."""
+    cover = reference[..., 3] > 0
+    a = reference[..., :3][cover].astype(np.float64)
+    b = image[..., :3][cover].astype(np.float64)
+    if not len(a):
+        return {}
+    rel = np.abs(b - a).sum(1) / np.maximum(a.sum(1), 1e-12)
+    return {"diff_mean_pct": 100.0 * float(rel.mean()),
+            "diff_p99_pct": 100.0 * float(np.percentile(rel, 99)),
+            "mean_ratio": float(b.mean() / max(a.mean(), 1e-30))}
 
 
 def _metrics(s: dict, wall: float) -> dict:
@@ -183,8 +205,14 @@ def _cell(records, mode, size, m, view, key="ms"):
     for rec in records:
         c = rec["case"]
         if (c["mode"], c["viewport"], c["microbuffer"], c["view"]) == (mode, size, m, view):
-            return rec["metrics"][key]
+            return rec["metrics"].get(key)
     return None
+
+
+def _diff(records, mode, size, m, view) -> str:
+    mean = _cell(records, mode, size, m, view, "diff_mean_pct")
+    p99 = _cell(records, mode, size, m, view, "diff_p99_pct")
+    return "-" if mean is None or p99 is None else f"{mean:.1f} / {p99:.1f}"
 
 
 def _fmt(v) -> str:
@@ -220,6 +248,11 @@ def markdown(records: list[dict]) -> str:
             c, h = _cell(records, "classic", s, m, v), _cell(records, "hybrid", s, m, v)
             return "-" if not c or not h else f"{c / h:.2f}"
         block("classic / hybrid (time ratio)", ratio)
+    for mode in modes:
+        if mode != "classic" and any("diff_mean_pct" in r["metrics"] for r in records
+                                     if r["case"]["mode"] == mode):
+            block(f"{mode} vs classic: mean / 99th-percentile per-pixel difference (%)",
+                  lambda s, v, m, mode=mode: _diff(records, mode, s, m, v))
     for mode in modes:
         if mode != "classic":
             block(f"{mode} extra memory (MB)",

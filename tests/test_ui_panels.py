@@ -72,6 +72,7 @@ def test_every_panel_draws_without_errors(ui, monkeypatch):
     from app.ui import panels
     monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {t for t, _ in panels.SECTIONS})
     ui.engine.cloud.hdr = ui.engine.cloud.ldr          # as after an expansion: LDR/HDR toggle
+    ui.engine.gi_stats.update(share_blocks=12, share_receivers=300)   # Hybrid's sharing line
     data = _draw(ui)
     assert not ui.engine.messages, [m.text for m in ui.engine.messages]
     assert data.cmd_lists_count >= 2                   # panel column + stats box (+ overlays)

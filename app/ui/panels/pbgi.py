@@ -28,3 +28,7 @@ def draw(ui) -> None:
                    f"M = {st.get('microbuffer', '?')}")
         imgui.text(f"last tile {st.get('width', '?')} x {st.get('height', '?')} px"
                    + ("" if st.get("completed", True) else "   INCOMPLETE"))
+        if st.get("share_blocks"):
+            shared = st.get("share_receivers", 0) / max(st.get("receivers", 1) or 1, 1)
+            imgui.text(f"far field shared by {int(st['share_blocks']):,} blocks "
+                       f"({100 * shared:.0f}% of pixels)")

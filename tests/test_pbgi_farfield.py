@@ -143,3 +143,33 @@ def test_parallax_tolerance_is_validated():
     for bad in (-0.5, float("nan"), 5.0, True):
         with pytest.raises(ScanlightError):
             replace(RenderParams(mode="hybrid"), parallax_tolerance=bad).validate()
+
+
+def test_gl_refusing_a_block_buffer_halves_the_batch(demo_relighter, monkeypatch):
+    """GL refusing the block micro-buffers (out of memory) is answered like every mode's
+    refusal: the renderer halves its batch, says so in the stats, and the frame completes
+    with the unrefused image up to blocks cut by the new batch boundaries."""
+    import moderngl
+
+    from app.demo.room import default_views
+    r = demo_relighter
+    cam = default_views(48, 48)["closeup"]
+    mat = S.diffuse(0.6)
+    p = RenderParams(mode="hybrid", microbuffer=16)
+    base = r.render(cam, [mat], p)
+    blocks = r.cut_finder(p).engine.block_mb
+    real, calls = blocks.prepare, []
+
+    def refuse_once(*args, **kw):
+        calls.append(args)
+        if len(calls) == 1:
+            raise moderngl.Error("GL_OUT_OF_MEMORY")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(blocks, "prepare", refuse_once)
+    r._mb_key = None
+    res = r.render(cam, [mat], p)
+    assert res.stats["tile_halvings"] == 1 and res.stats["completed"]
+    assert res.stats["batches"] >= 2
+    rel, ratio = _rel_errors(base.image, res.image)
+    assert abs(ratio - 1) < 0.01 and rel.mean() < 0.03

@@ -117,9 +117,9 @@ def test_sharing_is_as_accurate_as_classic_on_the_demo_room(demo_relighter, view
 
 
 def test_block_chunks_bounded_by_the_budget_give_the_same_image(demo_relighter):
-    """A budget too small for all block micro-buffers at once: the blocks are walked in chunks
-    (more than one), with exactly the image of the unbounded run; the extra memory reported is
-    the chunk's."""
+    """A budget too small for more than one block micro-buffer at a time: the blocks are walked
+    one per chunk, with exactly the image of the default chunks (MAX_CHUNK blocks); the extra
+    memory reported is the chunk's."""
     from app.demo.room import default_views
     r = demo_relighter
     cam = default_views(48, 48)["closeup"]
@@ -133,7 +133,8 @@ def test_block_chunks_bounded_by_the_budget_give_the_same_image(demo_relighter):
         small = r.render(cam, [mat], p)
     finally:
         finder.share_fraction = 0.25
-    assert small.stats["share_chunks"] > 1 and big.stats["share_chunks"] == 1
+    assert small.stats["share_chunks"] == small.stats["share_blocks"]   # one block per chunk
+    assert small.stats["share_chunks"] > big.stats["share_chunks"]
     assert np.array_equal(small.image, big.image)
     assert small.stats["mb_extra"] < big.stats["mb_extra"]
 

@@ -35,8 +35,9 @@ into micro-pixels is then the same over a block instead of varying pixel to pixe
 against Classic at M = 32, Hybrid at M = 16 is as close as Classic at M = 16
 (tests/test_pbgi_farfield.py). eps = 0 turns the sharing off (app/pbgi/hybrid.py).
 
-Memory: the block micro-buffers (one row of entries(M) texels per block) are the extra memory;
-blocks are processed in chunks sized from the budget, so it stays bounded.
+Memory: the block micro-buffers (one row of entries(M) texels per block) are most of the extra
+memory; blocks are walked in chunks of at most MAX_CHUNK (fewer when the budget is small), so it
+stays bounded whatever the number of blocks.
 """
 
 from __future__ import annotations
@@ -55,7 +56,14 @@ DEFAULT_TOLERANCE = 1.0       # eps, in micro-pixels
 DEFAULT_MAX_LEVEL = 3         # blocks up to 8 x 8 receivers
 DEFAULT_MAX_CONE = 0.1        # radians: the most a receiver's normal may differ from its block's
 MIN_BLOCK = 4                 # receivers; a smaller block shares too little to pay its walk
+MAX_CHUNK = 128               # blocks walked per chunk: bounds the block micro-buffers (1.6 MB at
+                              # M = 32) while two 64-wide workgroups still keep both cores busy
 INF = 3.0e38
+# GPU bytes besides the block micro-buffers: per receiver the near walk's resume state (16),
+# ball and frame (32), block index (4) and the gather's frame (16); per block its pseudo-receiver
+# record (64), ball and frame (32) and the far walk's resume state (16).
+RECEIVER_BYTES = 16 + 32 + 4 + 16
+BLOCK_BYTES = 64 + 32 + 16
 
 
 def micro_pixel_angle(m: int) -> float:
@@ -151,9 +159,9 @@ class FarFieldShare:
 
     @staticmethod
     def bytes_per_receiver(m: int) -> int:
-        """Resume state, ball, frame and block of a receiver, plus a quarter block row (blocks
-        hold >= 4)."""
-        return 16 + 32 + 16 + 4 + (entries(m) * ENTRY_BYTES + 64) // MIN_BLOCK
+        """What a receiver costs besides its micro-buffer, plus a quarter of a block's (blocks
+        hold >= 4 receivers)."""
+        return RECEIVER_BYTES + (entries(m) * ENTRY_BYTES + BLOCK_BYTES) // MIN_BLOCK
 
     def _buffer(self, data: np.ndarray):
         b = self.ctx.buffer(np.ascontiguousarray(data).tobytes())
@@ -189,7 +197,7 @@ class FarFieldShare:
         block_of = blocks["block_of"]
         t1 = time.perf_counter()
         row_bytes = entries(m) * ENTRY_BYTES
-        cap = int(max(1, min(nb, self.share_fraction * budget_bytes // row_bytes,
+        cap = int(max(1, min(nb, self.share_fraction * budget_bytes // row_bytes, MAX_CHUNK,
                              int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)))))
         far_visited = np.zeros(max(nb, 1), np.int64)
         far_done = np.ones(max(nb, 1), bool)
@@ -246,7 +254,8 @@ class FarFieldShare:
         bsize = blocks["size"]
         return {"rounds": rounds + res["rounds"], "visited": res["visited"], "done": done,
                 "cut_short": res.get("cut_short", 0), "tests": res.get("tests"),
-                "bytes": peak_bytes + 52 * count, "frames": self.frames,
+                "bytes": peak_bytes + RECEIVER_BYTES * count + BLOCK_BYTES * nb,
+                "frames": self.frames,
                 "extra": {"share_blocks": nb, "share_chunks": chunks, "share_receivers": int(has.sum()),
                           "share_block_visits": int(far_visited[:nb].sum()),
                           "ms_share_blocks": (t1 - t0) * 1e3, "ms_share_far": (t2 - t1) * 1e3,

@@ -5,7 +5,7 @@ is shared where its *result* is the same for neighbouring receivers. Blocks of u
 receivers with normals within 0.1 rad walk and rasterise the far field (nodes farther than
 D = block radius / (eps x 2 / M): they move by < eps micro-pixels across the block) once; each
 receiver walks the near field into a copy. This is what makes Hybrid faster than Classic on
-llvmpipe (README.md, Tests and benchmarks): 13-16x at 512 x 512 close-up, where the exact
+llvmpipe (README.md, Tests and benchmarks): 12-14x at 512 x 512 close-up, where the exact
 variant below gets 1.1x.
 
 ``parallax_tolerance`` = 0 - the paper's exact Hybrid: refine (node, pixel) pairs in parallel

@@ -95,68 +95,9 @@ float principled_smith_ggx_aniso(float n_dot_v, float v_dot_x, float v_dot_y, fl
     return 1.0 / (n_dot_v + sqrt(x * x + y * y + n_dot_v * n_dot_v));
 }
 
-vec3 principled_brdf(PrincipledParams p, vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y) {
-    float n_dot_l = dot(N, L);
-    float n_dot_v = dot(N, V);
-    if (n_dot_l <= 0.0 || n_dot_v <= 0.0) return vec3(0.0);
-
-    vec3 base = clamp(p.base_color, 0.0, 1.0);
-    float subsurface = clamp(p.subsurface, 0.0, 1.0);
-    float metallic = clamp(p.metallic, 0.0, 1.0);
-    float specular = clamp(p.specular, 0.0, 1.0);
-    float specular_tint = clamp(p.specular_tint, 0.0, 1.0);
-    float roughness = clamp(p.roughness, 0.0, 1.0);
-    float anisotropic = clamp(p.anisotropic, 0.0, 1.0);
-    float sheen = clamp(p.sheen, 0.0, 1.0);
-    float sheen_tint = clamp(p.sheen_tint, 0.0, 1.0);
-    float clearcoat = clamp(p.clearcoat, 0.0, 1.0);
-    float clearcoat_gloss = clamp(p.clearcoat_gloss, 0.0, 1.0);
-
-    vec3 H = normalize(L + V);  // n.(L + V) > 0, so L + V != 0
-    float n_dot_h = dot(N, H);
-    float l_dot_h = dot(L, H);
-
-    float lum = 0.3 * base.r + 0.6 * base.g + 0.1 * base.b;
-    vec3 tint = lum > 0.0 ? base / lum : vec3(1.0);  // hue and saturation only
-    vec3 spec0 = mix(specular * 0.08 * mix(vec3(1.0), tint, specular_tint), base, metallic);
-    vec3 sheen_color = mix(vec3(1.0), tint, sheen_tint);
-
-    // Diffuse: Schlick-weighted retro-reflection, from 1 at normal incidence to Fd90 at grazing.
-    float fl = schlick_weight(n_dot_l), fv = schlick_weight(n_dot_v);
-    float fd90 = 0.5 + 2.0 * l_dot_h * l_dot_h * roughness;
-    float fd = mix(1.0, fd90, fl) * mix(1.0, fd90, fv);
-    // Hanrahan-Krueger-like subsurface flattening; 1.25 roughly preserves albedo.
-    float fss90 = l_dot_h * l_dot_h * roughness;
-    float fss = mix(1.0, fss90, fl) * mix(1.0, fss90, fv);
-    float ss = 1.25 * (fss * (1.0 / max(n_dot_l + n_dot_v, 1e-6) - 0.5) + 0.5);
-
-    // Specular: anisotropic GGX (GTR2), Schlick Fresnel, separable Smith GGX.
-    float aspect = sqrt(1.0 - 0.9 * anisotropic);
-    float r2 = roughness * roughness;
-    float ax = max(PRINCIPLED_MIN_ALPHA, r2 / aspect);
-    float ay = max(PRINCIPLED_MIN_ALPHA, r2 * aspect);
-    float ds = principled_gtr2_aniso(n_dot_h, dot(H, X), dot(H, Y), ax, ay);
-    float fh = schlick_weight(l_dot_h);
-    vec3 fs = mix(spec0, vec3(1.0), fh);
-    float gs = principled_smith_ggx_aniso(n_dot_l, dot(L, X), dot(L, Y), ax, ay)
-             * principled_smith_ggx_aniso(n_dot_v, dot(V, X), dot(V, Y), ax, ay);
-
-    vec3 f_sheen = fh * sheen * sheen_color;
-
-    // Clearcoat: IOR 1.5 (F0 = 0.04), GTR1, Smith with fixed alpha 0.25, weight 0.25.
-    vec3 nxh = cross(N, H);
-    float dr = principled_gtr1(n_dot_h, dot(nxh, nxh), mix(0.1, 0.001, clearcoat_gloss));
-    float fr = mix(0.04, 1.0, fh);
-    float gr = principled_smith_ggx(n_dot_l, 0.25) * principled_smith_ggx(n_dot_v, 0.25);
-
-    return (INV_PI * mix(fd, ss, subsurface) * base + f_sheen) * (1.0 - metallic)
-         + gs * ds * fs + vec3(0.25 * clearcoat * gr * fr * dr);
-}
-
-// The same BRDF split in two for loops over many L with one V (the final gather): everything
-// that depends only on the material, N, X, Y and V is computed once by principled_prepare.
-// principled_brdf_prepared(q, L) equals principled_brdf(p, L, V, N, X, Y) (same operations in
-// the same order; tests/test_brdf.py checks it).
+// The BRDF in two parts, for loops over many L with one V (the final gather): everything that
+// depends only on the material, N, X, Y and V is computed once by principled_prepare, the rest
+// per direction by principled_brdf_prepared. principled_brdf is the two in one call.
 struct PrincipledPrepared {
     vec3 N, V, X, Y;
     float n_dot_v, metallic, roughness, subsurface, clearcoat, fv, ax, ay, gs_v, gr_v, cc_alpha;
@@ -219,6 +160,10 @@ vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {
     float gr = principled_smith_ggx(n_dot_l, 0.25) * q.gr_v;
     return (INV_PI * mix(fd, ss, q.subsurface) * q.base + f_sheen) * (1.0 - q.metallic)
          + gs * ds * fs + vec3(0.25 * q.clearcoat * gr * fr * dr);
+}
+
+vec3 principled_brdf(PrincipledParams p, vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y) {
+    return principled_brdf_prepared(principled_prepare(p, V, N, X, Y), L);
 }
 
 // Convenience for callers without a tangent (builds the frame on every call; hoist

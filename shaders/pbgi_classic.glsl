@@ -93,12 +93,7 @@ void main() {
 #endif
         uint next = node + 1u;          // descend
         if (dec == CUT_ACCEPT) {
-            uint c = mb_rect_entries(rect);
-            if (count == uint(LIST_CAP) || (count > 0u && cost + c > u_splat_budget)) break;
-            cut_list_node[count] = node;
-            cut_list_rect[count] = mb_pack_rect(rect);
-            count++;
-            cost += c;
+            if (!cut_list_push(node, rect, count, cost, u_splat_budget)) break;
             next = skip;
         } else if (dec == CUT_SKIP) {
             next = skip;                // below the horizon or back-facing: skip the subtree

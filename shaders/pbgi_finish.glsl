@@ -107,15 +107,10 @@ void main() {
             uint dec = cut_decide(node, p, N, T, B, u_omega_stop, u_omega_horizon, u_m, rect, skip);
             uint next = node + 1u;
             if (dec == CUT_ACCEPT) {
-                uint c = mb_rect_entries(rect);
-                if (count == uint(CUT_LIST_CAP) || (count > 0u && cost + c > u_splat_budget)) {
+                if (!cut_list_push(node, rect, count, cost, u_splat_budget)) {
                     full = true;
                     break;
                 }
-                cut_list_node[count] = node;
-                cut_list_rect[count] = mb_pack_rect(rect);
-                count++;
-                cost += c;
                 next = skip;
             } else if (dec == CUT_SKIP) {
                 next = skip;

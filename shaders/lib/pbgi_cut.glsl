@@ -70,6 +70,18 @@ uint cut_decide(uint node, vec3 p, vec3 N, vec3 T, vec3 B, float omega_stop,
 uint cut_list_node[CUT_LIST_CAP];
 uint cut_list_rect[CUT_LIST_CAP];
 
+// Appends an accepted node and its rectangle to the list; false (nothing appended) when the list
+// is full or the slice's entry-test budget would overflow - the walk stops and resumes there.
+bool cut_list_push(uint node, uvec4 rect, inout uint count, inout uint cost, uint budget) {
+    uint c = mb_rect_entries(rect);
+    if (count == uint(CUT_LIST_CAP) || (count > 0u && cost + c > budget)) return false;
+    cut_list_node[count] = node;
+    cut_list_rect[count] = mb_pack_rect(rect);
+    count++;
+    cost += c;
+    return true;
+}
+
 // Depth-tested write with a deterministic tie-break: equal keys keep the lower node index, which
 // is what a depth-first walk (nodes in index order) gets with a strict test, whatever order the
 // nodes arrive in. A walk whose nodes do arrive in index order (Classic's whole-tree walk)
@@ -99,6 +111,15 @@ MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
     return nd;
 }
 
+// One rasteriser step: node nd against micro-buffer entry kk of a receiver with frame (T, B, N).
+void cut_test_entry(MbNode nd, uint kk, vec3 T, vec3 B, vec3 N, uint receiver) {
+    vec4 tb = mb_table(kk);
+    if (tb.w > 0.0) {
+        uint key = mb_hit_key(nd, T * tb.x + B * tb.y + N * tb.z);
+        if (key != MB_EMPTY) cut_write(receiver, kk, key, nd.index);
+    }
+}
+
 // Rasterise cut_list_node[0 .. count) (``cost`` entry tests in all: mb_rect_entries of each
 // rectangle) into the micro-buffer of batch receiver ``receiver``: one flat loop over
 // (node, entry) with mb_cursor (no inner loop), so the loop count is the budgeted ``cost`` and
@@ -120,13 +141,7 @@ uint cut_raster(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, uint rece
             cur = mb_cursor(rect);
             load = false;
         }
-        uint kk = mb_cursor_entry(cur, m);
-        vec4 tb = mb_table(kk);
-        if (tb.w > 0.0) {
-            vec3 w = T * tb.x + B * tb.y + N * tb.z;
-            uint key = mb_hit_key(nd, w);
-            if (key != MB_EMPTY) cut_write(receiver, kk, key, nd.index);
-        }
+        cut_test_entry(nd, mb_cursor_entry(cur, m), T, B, N, receiver);
         if (!mb_cursor_next(cur, rect)) { k++; load = true; }
     }
     k_out = (it == cost) ? count : k;
@@ -151,13 +166,7 @@ uint cut_raster_nested(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, ui
         bool more = true;
         uint j = 0u;
         for (; more; ++j) {
-            uint kk = mb_cursor_entry(cur, m);
-            vec4 tb = mb_table(kk);
-            if (tb.w > 0.0) {
-                vec3 w = T * tb.x + B * tb.y + N * tb.z;
-                uint key = mb_hit_key(nd, w);
-                if (key != MB_EMPTY) cut_write(receiver, kk, key, nd.index);
-            }
+            cut_test_entry(nd, mb_cursor_entry(cur, m), T, B, N, receiver);
             more = mb_cursor_next(cur, rect);
         }
         it += j;

@@ -97,7 +97,6 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
         key = (y >> level) * (width + 1) + (x >> level)
         uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
         k = len(uniq)
-        c = np.stack([np.bincount(inv, p[:, j], k) for j in range(3)], 1) / cnt[:, None]
         a = np.stack([np.bincount(inv, nrm[:, j], k) for j in range(3)], 1)
         a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-30)
         cos = np.einsum("ij,ij->i", nrm, a[inv])

@@ -33,7 +33,7 @@ def demo_relighter(demo):
 @pytest.fixture(scope="module")
 def furnace():
     """The white furnace: a sphere inside a closed shell of constant radiance 1."""
-    import pbgi_scenes as S
+    from tests.support import scenes as S
     from app.pbgi.renderer import Relighter
     r = Relighter()
     r.set_cloud(S.furnace_shell(20000, radius=2.0, radiance=1.0))

@@ -96,8 +96,14 @@ def _defines_text(defines: dict | None) -> str:
     return "\n".join(lines)
 
 
-def build_source(name: str, stage: str | None, defines: dict | None = None) -> tuple[str, _Source]:
-    path = shaders_dir() / name
+def _program_path(name) -> Path:
+    """A program in shaders/ by name, or any .glsl file by path (the tests' own programs);
+    includes always come from shaders/."""
+    return name if isinstance(name, Path) else shaders_dir() / name
+
+
+def build_source(name, stage: str | None, defines: dict | None = None) -> tuple[str, _Source]:
+    path = _program_path(name)
     if not path.is_file():
         raise ScanlightError(path, "shader file not found")
     src = _Source()
@@ -105,7 +111,7 @@ def build_source(name: str, stage: str | None, defines: dict | None = None) -> t
     if stage:
         head.append(f"#define {stage}")
     head.append(_defines_text(defines))
-    body = src.expand(name, path.read_text())
+    body = src.expand(str(name), path.read_text())
     return "\n".join(head) + "\n" + body + "\n", src
 
 
@@ -113,7 +119,7 @@ def _compile_error(name: str, src_map: _Source, exc: Exception) -> ScanlightErro
     msg = src_map.describe(str(exc))
     lines = [ln.strip() for ln in msg.splitlines() if "error" in ln.lower() and ":" in ln]
     first = lines[0] if lines else " ".join(msg.split())[:300]
-    return ScanlightError(shaders_dir() / name, f"shader compile/link failed: {first}")
+    return ScanlightError(_program_path(name), f"shader compile/link failed: {first}")
 
 
 def load_program(ctx: moderngl.Context, name: str, defines: dict | None = None,

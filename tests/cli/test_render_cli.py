@@ -1,0 +1,110 @@
+"""``scanlight render``: outputs, stats, and one-line errors with exit codes 2 (usage) / 3 (input)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tests.support import scenes as S
+from app.cli import main
+from app.io.exr import read_exr
+from app.io.pointcloud import save_cloud
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("render")
+    save_cloud(S.box_room(0.1), d / "room.ply")
+    (d / "obj.json").write_text(json.dumps({"mesh": "sphere", "translate": [0, 0.8, 0],
+                                            "scale": 0.6}))
+    (d / "mat.json").write_text(json.dumps({"base_color": [0.8, 0.2, 0.1], "roughness": 0.4}))
+    (d / "cam.json").write_text(json.dumps({"position": [0.3, 1.0, 0.9], "look_at": [0, 0.8, 0],
+                                            "fov_y_deg": 40, "width": 16, "height": 12}))
+    return d
+
+
+def _args(d, *extra):
+    return ["render", "--cloud", str(d / "room.ply"), "--object", str(d / "obj.json"),
+            "--material", str(d / "mat.json"), "--camera", str(d / "cam.json"),
+            "--out", str(d / "out.exr"), *extra]
+
+
+@pytest.mark.parametrize("mode", ["classic", "envmap"])
+def test_render_writes_exr_png_and_stats(inputs, mode, capsys):
+    d = inputs
+    code = main(_args(d, "--mode", mode, "--microbuffer", "12", "--png", str(d / "out.png"),
+                      "--stats", str(d / "stats.json"), "--size", "20x14", "--background"))
+    assert code == 0
+    img = read_exr(d / "out.exr").rgb
+    assert img.shape == (14, 20, 3) and np.isfinite(img).all() and img.max() > 0
+    from PIL import Image
+    with Image.open(d / "out.png") as png:
+        assert png.size == (20, 14)
+    stats = json.loads((d / "stats.json").read_text())
+    assert stats["mode"] == mode and stats["microbuffer"] == 12 and stats["completed"] is True
+    assert stats["width"] == 20 and stats["height"] == 14
+    assert stats["ms"] > 0 and stats["mb"] > 0
+    assert stats["tonemapper"] == "Khronos PBR Neutral"
+    if mode == "classic":
+        assert stats["nodes_visited"] > 1
+    # the background fills the pixels around the object: nothing is black
+    assert (img.sum(axis=-1) > 0).all()
+    assert "rendered 20x14" in capsys.readouterr().out
+
+
+def test_render_matches_the_api(inputs):
+    """The CLI renders what Relighter renders (no background, same material and camera)."""
+    from app.camera import load_camera
+    from app.cloud import PointCloud
+    from app.io.formats import load_object, placed_mesh
+    from app.io.pointcloud import load_cloud
+    from app.material import load_material
+    from app.pbgi.renderer import Relighter, RenderParams
+    d = inputs
+    assert main(_args(d, "--microbuffer", "8")) == 0
+    cli = read_exr(d / "out.exr").rgb
+    r = Relighter()
+    c = load_cloud(d / "room.ply")
+    r.set_cloud(PointCloud(c.positions, c.normals, c.colors, hdr=True))
+    r.set_asset(placed_mesh(load_object(d / "obj.json")))
+    api = r.render(load_camera(d / "cam.json"), [load_material(d / "mat.json")],
+                   RenderParams(microbuffer=8)).image[..., :3]
+    assert np.allclose(cli, api, rtol=1e-5, atol=1e-6)
+
+
+def _scanlight(*args):
+    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True,
+                          timeout=600)
+
+
+@pytest.mark.parametrize("extra, code, needle", [
+    (["--microbuffer", "40"], 2, "--microbuffer"),
+    (["--mode", "nope"], 2, "invalid choice"),
+    (["--size", "12by4"], 2, "--size"),
+    (["--out-of-range"], 2, "unrecognized"),
+])
+def test_bad_arguments_exit_2_with_one_line(inputs, extra, code, needle):
+    res = _scanlight(*_args(inputs, *extra))
+    assert res.returncode == code, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in res.stderr
+
+
+def test_bad_input_files_exit_3_naming_the_file(inputs, tmp_path):
+    bad_cam = tmp_path / "cam.json"
+    bad_cam.write_text('{"position": [0, 1, 0], "look_at": [0, 1, 0]}')
+    args = _args(inputs)
+    args[args.index("--camera") + 1] = str(bad_cam)
+    res = _scanlight(*args)
+    assert res.returncode == 3
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(bad_cam) in lines[0]
+    args = _args(inputs)
+    args[args.index("--cloud") + 1] = str(tmp_path / "missing.ply")
+    res = _scanlight(*args)
+    assert res.returncode == 3 and "missing.ply" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1

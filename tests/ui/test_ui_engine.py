@@ -1,0 +1,336 @@
+"""The viewer engine offscreen (headless EGL): compositing, change sets, errors, screenshots,
+sessions and the HDR expansion job, with the real PBGI renderer kept cheap (small viewports,
+micro-buffer 8; tests/support/viewer.py), its calls counted by a spy that leaves them untouched."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from tests.support.viewer import small_session
+
+from app.render.splat import near_far
+from app.ui import composite
+from app.ui.engine import ViewerEngine
+
+
+def make_engine(ctx, size=(96, 72), session=None):
+    return ViewerEngine(ctx, session or small_session(), size=size)
+
+
+def twin(e: ViewerEngine) -> np.ndarray:
+    inp = e.view.read_inputs()
+    near, far = near_far(e.camera(), *e.view.splat.bounds)
+    from app.ui.viewport import BACKGROUND
+    return composite.composite(inp["room"], inp["room_depth"], inp["gbuf"], inp["preview"],
+                               inp["full"], near, far, BACKGROUND)[::-1]
+
+
+def test_gpu_composite_matches_numpy_twin(ctx, renders):
+    """Preview-only (interacting) and converged states: same linear image and asset mask."""
+    e = make_engine(ctx, (80, 60))
+    e.frame(interacting=True)
+    gpu = e.view.read_linear()
+    assert e.gi.progress == 0.0 and gpu[..., 3].sum() > 100        # the asset is there already
+    ref = twin(e)
+    np.testing.assert_array_equal(gpu[..., 3], ref[..., 3])
+    np.testing.assert_allclose(gpu, ref, atol=1e-5)
+    e.finish_refinement()
+    gpu = e.view.read_linear()
+    np.testing.assert_allclose(gpu, twin(e), atol=1e-5)
+
+
+def test_bilateral_upsampling_keeps_colours_on_their_side_of_a_depth_edge():
+    """Two surfaces at different depths, GI known only at 1/4 resolution: each full-resolution
+    pixel takes its colour from the low-resolution samples of its own surface."""
+    H, W = 16, 16
+    gbuf = np.zeros((H, W, 4), np.float32)
+    gbuf[..., 2] = 1.0
+    gbuf[:, :8, 3] = 1.0            # near surface on the left half
+    gbuf[:, 8:, 3] = 3.0            # far surface on the right half
+    lo = np.zeros((4, 4, 4), np.float32)
+    lo[..., 3] = 1.0
+    lo[:, :2, :3] = (1.0, 0.0, 0.0)  # red samples belong to the near (left) surface
+    lo[:, 2:, :3] = (0.0, 0.0, 1.0)
+    acc, w, pending = composite.upsample(lo, gbuf, (H, W))
+    rgb = acc / w[..., None]
+    assert not pending.any()
+    assert (rgb[:, :8, 0] > 0.999).all() and (rgb[:, 8:, 2] > 0.999).all()
+    # plain bilinear would mix the two across the edge: column 7 maps to x = 1.375 in the low
+    # resolution image, 62.5% red and 37.5% blue
+    plain_red = 1.0 - ((7 + 0.5) * 4 / 16 - 0.5 - 1)
+    assert plain_red == pytest.approx(0.625) and (rgb[:, 7, 2] < 1e-3).all()
+
+
+def test_changes_redo_only_what_depends_on_them(ctx, renders):
+    """Counted on the real renderer: display settings redo no GI; a BRDF slider re-gathers the
+    asset (and changes its pixels, not the room's); a camera move while interacting renders
+    only the reduced-resolution preview."""
+    e = make_engine(ctx)
+    e.frame()
+    e.finish_refinement()
+    before = e.view.read_linear()
+    asset = before[..., 3] > 0
+    assert asset.sum() > 200 and all(c.microbuffer == 8 and c.mode == "classic"
+                                     for c in renders)
+    s = e.session.settings
+    n = len(renders)
+    s.set("view.exposure", 1.0)                                   # display only
+    info = e.frame()
+    assert len(renders) == n and not info["room"]
+    s.set("view.exposure", 0.0)
+    e.session.set_material(0, {"roughness": 0.9, "base_color": [0.9, 0.1, 0.1]})
+    info = e.frame()                                              # re-gather, room untouched
+    assert len(renders) > n and not info["room"] and info["gi"]
+    e.finish_refinement()
+    after = e.view.read_linear()
+    np.testing.assert_array_equal(after[~asset], before[~asset])
+    red = after[asset][:, 0] / np.maximum(after[asset][:, 1], 1e-6)
+    was = before[asset][:, 0] / np.maximum(before[asset][:, 1], 1e-6)
+    assert np.median(red) > 2 * np.median(was)                      # the asset turned red
+    s.set("pbgi.mode", "envmap")
+    e.frame()
+    assert e.gi_stats["mode"] == "envmap" and renders[-1].mode == "envmap"
+    e.finish_refinement()
+    n = len(renders)
+    e.nav.orbit(10, 0)                                             # camera: everything
+    info = e.frame(interacting=True)
+    assert info["room"] and len(renders) == n + 1                  # preview only while moving
+    full = e.gi.camera
+    assert renders[-1].size[0] < full.width and e.gi.refining     # reduced resolution, pending
+
+
+def test_stats_skip_tiles_outside_the_silhouette(ctx, renders):
+    """The PBGI panel shows the last gather that had receivers, not the zeros of an empty
+    corner tile; a new mode shows at once even from an empty tile."""
+    e = make_engine(ctx)
+    e.frame()
+    e.finish_refinement()
+    shown = dict(e.gi_stats)
+    assert shown["receivers"] > 0 and shown["nodes_visited"] > 0
+    e._render_gi(e.gi.camera, (0, 0, 4, 4))                       # the corner: only room
+    assert renders[-1].receivers == 0 and e.gi_stats == shown
+    e.session.settings.set("pbgi.mode", "envmap")
+    e._render_gi(e.gi.camera, (0, 0, 4, 4))
+    assert e.gi_stats["mode"] == "envmap" and e.gi_stats["receivers"] == 0
+
+
+def test_screenshot_png_is_the_tone_mapped_exr(ctx, renders, tmp_path):
+    from tests.support.images import read_png
+
+    from app.io.exr import read_exr
+    from app.render.tonemap import tonemap_to_srgb8
+    e = make_engine(ctx)
+    e.session.settings.set("view.exposure", 0.5)
+    e.frame()
+    files = e.screenshot(tmp_path / "shot.png")
+    assert not e.gi.refining                                        # screenshots are converged
+    png, lin = read_png(files[0]), read_exr(files[1]).rgb
+    assert png.shape == (72, 96, 3) and lin.shape == (72, 96, 3)
+    expect = tonemap_to_srgb8(lin, 0.5)
+    assert np.abs(png.astype(int) - expect.astype(int)).max() <= 1
+
+
+def test_missing_renderer_shows_a_placeholder_not_a_crash(ctx, monkeypatch):
+    monkeypatch.setenv("SCANLIGHT_RELIGHTER", "app.pbgi.no_such_renderer:Relighter")
+    e = make_engine(ctx, (160, 120))
+    for _ in range(3):
+        e.frame()
+    assert not e.renderer_available and "no_such_renderer" in e.relighter_error
+    lin = e.view.read_linear()
+    asset = lin[..., 3] > 0
+    assert asset.sum() > 200
+    levels = np.unique(lin[asset][:, 0])
+    np.testing.assert_allclose(levels, [0.10, 0.16], rtol=1e-6)       # the hatch pattern
+    shown = e.view.read_display().astype(int)
+    assert (shown[asset] > 240).all(axis=-1).sum() > 20               # white label text
+
+
+def test_bad_files_and_failing_renderer_become_messages(ctx, renders, monkeypatch, tmp_path):
+    e = make_engine(ctx)
+    e.frame()
+    # the real renderer refusing its input (no material) is a message, and the loop goes on
+    e.session.set_materials([])
+    e.frame()
+    e.frame()
+    assert e.gi_failed and any(m.text.startswith("relighting: ") and "material" in m.text
+                               for m in e.messages)
+    e.reset_materials()
+    n = len(renders)
+    e.frame()
+    e.finish_refinement()
+    assert not e.gi_failed and e.gi_stats.get("completed")
+    assert sum(c.receivers for c in renders[n:]) > 100               # relit again
+
+    def boom(*a, **k):      # an unexpected bug inside the renderer (fault injection)
+        raise RuntimeError("GPU on fire")
+    monkeypatch.setattr(e.relighter, "render", boom)
+    e.session.set_material(0, {"metallic": 1.0})
+    e.frame()
+    e.frame()
+    assert e.gi_failed and any("GPU on fire" in m.text for m in e.messages)
+    monkeypatch.undo()
+
+    e.session.set_file("cloud", str(tmp_path / "missing.ply"))
+    e.frame()
+    assert any("missing.ply" in m.text for m in e.messages)
+    assert len(e.cloud.ldr) > 1000                                    # the old room stays
+    bad = tmp_path / "broken.glb"
+    bad.write_bytes(b"glTF garbage")
+    e.session.set_file("asset", str(bad))
+    e.frame()
+    assert any("broken.glb" in m.text for m in e.messages)
+    assert e.mesh is not None                                         # the old asset stays
+
+
+def test_a_scene_without_a_room_keeps_running(ctx, renders, tmp_path):
+    """The first cloud fails to open: an empty room; the real renderer refuses to relight
+    without a cloud, which is a message, and the asset shows as the placeholder hatch."""
+    s = small_session()
+    s.cloud = str(tmp_path / "missing.ply")
+    e = make_engine(ctx, session=s)
+    e.frame()
+    e.frame()
+    assert any("missing.ply" in m.text for m in e.messages)
+    assert e.gi_failed and any(m.text.startswith("relighting: ") and "cloud" in m.text
+                               for m in e.messages)
+    lin = e.view.read_linear()
+    asset = lin[..., 3] > 0
+    assert asset.sum() > 200
+    np.testing.assert_allclose(np.unique(lin[asset][:, 0]), [0.10, 0.16], rtol=1e-6)
+
+
+def test_session_round_trip_renders_the_same_image(ctx, renders, tmp_path):
+    from app.settings import load_session
+    e = make_engine(ctx)
+    e.nav.orbit(40, 10)
+    e.session.set_material(0, {"base_color": [0.2, 0.5, 0.9], "roughness": 0.2})
+    e.session.settings.set("view.exposure", -0.5)
+    e.frame()
+    e.finish_refinement()
+    first = e.view.read_display()
+    e.session.camera = e.camera()
+    e.session.save(tmp_path / "s.json")
+    e2 = make_engine(ctx, session=load_session(tmp_path / "s.json"))
+    e2.frame()
+    e2.finish_refinement()
+    np.testing.assert_array_equal(e2.view.read_display(), first)
+
+
+def _expansion_request(e, face=64):
+    from app.ui.hdr_task import ExpansionRequest
+    e.session.settings.set("hdr.face_size", face)
+    return ExpansionRequest.from_settings(e.cloud.ldr, e.photo,
+                                          [c.position for c in e.session.capture_cameras],
+                                          e.session.settings)
+
+
+def test_expansion_switches_the_room_to_hdr(ctx, renders):
+    """The expanded cloud is shown and relights the asset: the lights no longer clip at 1, so
+    the relit asset gets brighter (the real renderer gathers the new node colours)."""
+    from app.ui.hdr_task import ExpansionTask
+    e = make_engine(ctx)
+    e.frame()
+    e.finish_refinement()
+    ldr = e.view.read_linear()
+    task = ExpansionTask(_expansion_request(e), synchronous=True)
+    assert task.state == "done", task.error
+    n = len(renders)
+    e.set_hdr_cloud(task.result.cloud)
+    assert e.session.settings["view.cloud"] == "hdr"
+    e.frame()
+    e.finish_refinement()
+    assert len(renders) > n
+    hdr = e.view.read_linear()
+    room, asset = hdr[..., 3] == 0, hdr[..., 3] > 0
+    assert hdr[room][:, :3].max() > 1.5 and ldr[room][:, :3].max() <= 1.0 + 1e-6
+    assert hdr[asset][:, :3].mean() > 1.5 * ldr[asset][:, :3].mean()        # measured: 2.2x
+    e.session.settings.set("view.cloud", "difference")
+    e.frame()
+    diff = e.view.read_linear()[room][:, :3]
+    unchanged = np.all(np.abs(diff - (0.01, 0.01, 0.02)) < 1e-6, axis=1)
+    assert diff.max() <= 1.0 and 0.5 < unchanged.mean() < 1.0      # most points kept LDR
+
+
+def test_difference_colours_follow_the_stops():
+    from app.ui.scene import DIFF_STOPS, difference_colors
+    ldr = np.full((4, 3), 0.5, np.float32)
+    hdr = ldr * np.array([1.0, 2 ** (DIFF_STOPS / 2), 2 ** DIFF_STOPS, 2 ** 20])[:, None]
+    c = difference_colors(ldr, hdr)
+    np.testing.assert_allclose(c[0], (0.01, 0.01, 0.02), atol=1e-6)   # unchanged: black
+    np.testing.assert_allclose(c[1], (0.1, 0.7, 0.2), atol=1e-3)      # half way: green
+    np.testing.assert_allclose(c[2:], 1.0, atol=1e-3)                 # >= DIFF_STOPS: white
+
+
+def test_frame_loop_keeps_running_during_an_expansion(ctx, renders):
+    """Frames while the expansion job runs in its worker thread, against frames without it.
+
+    Bound: no frame longer than 4x the median frame without the job plus 250 ms. The job and the
+    viewer share 2 cores, so frames may take a few times longer, but a frame blocked by the job
+    (GIL held through a long pure-Python step, or the job on the main thread) would take seconds.
+    Also: at least 10 frames ran while the job made progress.
+    """
+    from app.ui.hdr_task import ExpansionTask
+    e = make_engine(ctx, (96, 72))
+    base = []
+    for _ in range(12):
+        e.nav.orbit(3, 0)
+        base.append(e.frame()["ms"])
+    task = ExpansionTask(_expansion_request(e), synchronous=False)
+    during, fractions = [], []
+    t0 = time.perf_counter()
+    while task.running and time.perf_counter() - t0 < 120:
+        e.nav.orbit(3, 0)
+        during.append(e.frame()["ms"])
+        task.poll()
+        fractions.append(task.snapshot()[1])
+    assert task.state == "done", task.error
+    bound = 4 * float(np.median(base)) + 250.0
+    assert len(during) >= 10
+    assert fractions[-1] > fractions[0]
+    assert max(during) <= bound, (max(during), bound, np.median(base))
+
+
+def test_opening_files_by_kind(ctx, renders, tmp_path, demo):
+    """What drag-and-drop and the file dialogs do: the engine reloads only what changed."""
+    import json
+
+    from app.errors import ScanlightError
+    from app.io.pointcloud import save_cloud
+    from app.ui.files import open_into
+    e = make_engine(ctx)
+    e.frame()
+    small = demo.ldr.subset(np.arange(0, len(demo.ldr), 20))
+    save_cloud(small, tmp_path / "scan.ply")
+    assert open_into(e.session, tmp_path / "scan.ply") == "cloud"
+    e.frame()
+    assert len(e.cloud.ldr) == len(small) and not e.messages
+    (tmp_path / "obj.json").write_text(json.dumps({"mesh": "sphere", "translate": [0, 1, 0],
+                                                   "scale": 0.5}))
+    assert open_into(e.session, tmp_path / "obj.json") == "object"
+    e.frame()
+    lo, hi = e.mesh.bounds()
+    np.testing.assert_allclose((lo + hi) / 2, (0, 1, 0), atol=1e-3)
+    np.testing.assert_allclose(hi - lo, 0.5, atol=1e-3)
+    e.session.save(tmp_path / "s.json")
+    assert open_into(e.session, tmp_path / "s.json") == "session"
+    with pytest.raises(ScanlightError, match="don't know how to open"):
+        open_into(e.session, tmp_path / "notes.txt")
+
+
+def test_capture_preview_sees_the_room_in_six_directions(ctx, renders):
+    e = make_engine(ctx)
+    img = e.capture_preview((0.5, 1.4, 0.8), face=16)
+    assert img.shape == (48, 64, 3)
+    cells = {(r, c): img[r * 16:(r + 1) * 16, c * 16:(c + 1) * 16] for r in range(3)
+             for c in range(4)}
+    used = {(1, 0), (1, 1), (1, 2), (1, 3), (0, 1), (2, 1)}
+    for key, cell in cells.items():
+        if key in used:
+            assert cell.mean() > 20, key            # inside a closed room every face sees walls
+        else:
+            assert cell.max() == 0, key
+    # up (+Y) sees the bright ceiling light more than down (-Y) sees the floor
+    assert cells[(0, 1)].max() >= cells[(2, 1)].max()

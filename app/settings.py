@@ -1,15 +1,16 @@
 """The viewer's plain settings model and its session file; no UI and no GL imports here.
 
-``SETTINGS`` is the parameter table, declared once: key, type, default, range, unit, tooltip. The
-UI derives every slider, combo and checkbox from it (app/ui/widgets.py), ``markdown_table()``
-writes the docs, and the session JSON stores the values under the same keys.
+The values are those of the parameter table (app/params.py, every parameter declared once): the
+UI derives its widgets from it (app/ui/widgets.py) and the session JSON stores the values under
+the same keys. A value out of range is clamped here (a slider or an old session never fails);
+records and the command line reject it instead (``Param.check``).
 
 Editing follows the Mitsuba pattern: whoever edits calls ``set``; the model records *which keys
-changed*; the engine reads ``take_changes()`` once per frame and decides what to redo (a BRDF
-slider only re-gathers the asset, an exposure change only re-tone-maps, a new cloud rebuilds the
-hierarchy). Non-settings parts of the session (files, capture cameras, asset transform,
-materials, the view camera) report their changes through the same change set under the keys in
-``DOCUMENT_KEYS``.
+changed*; the engine reads ``take_changes()`` once per frame and hands each key to its change
+handler (app/ui/engine.py): a BRDF slider only re-gathers the asset, an exposure change only
+re-tone-maps, a new cloud rebuilds the hierarchy. Non-settings parts of the session (files,
+capture cameras, asset transform, materials, the view camera) report their changes through the
+same change set under the keys in ``DOCUMENT_KEYS``.
 """
 
 from __future__ import annotations
@@ -19,133 +20,15 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from app.camera import Camera, camera_from_dict
 from app.errors import ScanlightError
 from app.material import Material, material_from_dict
+from app.params import BY_KEY, PARAMS
 
 SESSION_VERSION = 1
-
-
-@dataclass(frozen=True)
-class Setting:
-    """One user-facing parameter. ``kind`` is float | int | bool | choice."""
-
-    key: str
-    kind: str
-    default: Any
-    tooltip: str
-    lo: float | None = None
-    hi: float | None = None
-    unit: str = ""
-    choices: tuple[str, ...] = ()
-    label: str = ""
-    log: bool = False  # logarithmic slider (ranges spanning decades)
-
-    @property
-    def group(self) -> str:
-        return self.key.split(".", 1)[0]
-
-    @property
-    def title(self) -> str:
-        return self.label or self.key.split(".", 1)[1].replace("_", " ")
-
-    def coerce(self, value, source=None):
-        """The value validated and clamped to the range; ScanlightError names the key otherwise."""
-        where = f"setting {self.key!r}"
-        if self.kind == "bool":
-            if isinstance(value, bool):
-                return value
-            if isinstance(value, (int, float)) and value in (0, 1):
-                return bool(value)
-            raise ScanlightError(source, f"{where} must be true or false, got {value!r}")
-        if self.kind == "choice":
-            if isinstance(value, str) and value in self.choices:
-                return value
-            raise ScanlightError(source, f"{where} must be one of {', '.join(self.choices)}, "
-                                         f"got {value!r}")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-            raise ScanlightError(source, f"{where} must be a number, got {value!r}")
-        v = float(value)
-        if not math.isfinite(v):
-            raise ScanlightError(source, f"{where} must be finite, got {value!r}")
-        v = min(max(v, self.lo), self.hi)
-        return int(round(v)) if self.kind == "int" else v
-
-
-MODES = ("classic", "mipmapped", "hybrid", "envmap")
-CLOUD_DISPLAYS = ("ldr", "hdr", "difference")
-TONEMAPPERS = ("pbr-neutral", "clamp")
-HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
-
-SETTINGS: tuple[Setting, ...] = (
-    # -- display --------------------------------------------------------------------------------
-    Setting("view.exposure", "float", 0.0, "Exposure before the tone mapper: radiance x 2^EV.",
-            -10.0, 10.0, "EV"),
-    Setting("view.tonemap", "choice", "pbr-neutral",
-            "Tone mapper: Khronos PBR Neutral keeps base colours recognisable and rolls off "
-            "highlights; 'clamp' shows linear values clipped at 1.", choices=TONEMAPPERS),
-    Setting("view.cloud", "choice", "ldr",
-            "Which room colours to show: the LDR scan, the HDR-expanded cloud, or the difference "
-            "map log2(Y_hdr / Y_ldr) in false colour (paper Fig. 1).", choices=CLOUD_DISPLAYS,
-            label="cloud colours"),
-    Setting("view.fov_y", "float", 50.0, "Vertical field of view of the viewport camera.",
-            10.0, 120.0, "deg", label="field of view"),
-    Setting("view.splat_scale", "float", 2.0, "Radius multiplier of the room's point splats "
-            "(1 = twice the median point spacing; 2 closes the gaps of a random scan up close).",
-            0.25, 4.0, "x", label="splat size"),
-    Setting("view.show_cameras", "bool", True, "Draw the capture cameras as gizmos."),
-    Setting("view.show_gizmo", "bool", True, "Show the asset transform gizmo in the viewport."),
-    Setting("view.fly_speed", "float", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s",
-            log=True),
-    # -- PBGI -----------------------------------------------------------------------------------
-    Setting("pbgi.mode", "choice", "classic",
-            "Classic: one hierarchy walk per pixel. Mipmapped: walks shared through the G-buffer "
-            "pyramid. Hybrid: far field shared between neighbouring pixels, near field per pixel "
-            "(several times faster). Environment map: one cube map "
-            "from the asset centre.", choices=MODES),
-    Setting("pbgi.microbuffer", "int", 24, "Micro-buffer resolution M (M x M micro-pixels "
-            "per receiver).", 8, 32, "px"),
-    Setting("pbgi.render_scale", "float", 1.0, "Final GI resolution relative to the viewport "
-            "(refined in tiles when the view is idle).", 0.125, 1.0, "x"),
-    Setting("pbgi.preview_scale", "float", 0.25, "GI resolution while the camera or a slider "
-            "moves; upsampled with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x"),
-    Setting("pbgi.omega_tr_factor", "float", 32.0, "Exact Hybrid (parallax tolerance 0): a node "
-            "is refined per pixel once its solid angle drops below this factor times the "
-            "micro-pixel's.", 1.0, 256.0,
-            "x", label="Omega_tr factor", log=True),
-    Setting("pbgi.parallax_tolerance", "float", 1.0, "Hybrid: the far field is walked once per "
-            "block of pixels where seen from any pixel of the block it moves by less than this "
-            "(micro-pixels); 0 = the exact Hybrid (the same cut as Classic, slower).", 0.0, 4.0,
-            "px", label="parallax tolerance"),
-    Setting("pbgi.memory_budget_mb", "float", 1024.0, "GPU memory the mipmapped/hybrid pair "
-            "lists may use before they fall back to smaller batches.", 64.0, 8192.0, "MB",
-            label="memory budget", log=True),
-    Setting("pbgi.frame_budget_ms", "float", 80.0, "GI work per frame while refining: tiles are "
-            "sized so one frame stays near this time.", 10.0, 1000.0, "ms", label="frame budget",
-            log=True),
-    # -- HDR expansion --------------------------------------------------------------------------
-    Setting("hdr.method", "choice", "pmatch-rgb",
-            "Expansion strategy: generalised PatchMatch transferring colour or luminance from the "
-            "photo, or inverse tone mapping (Landis / Banterle; '-pc' = per point).",
-            choices=HDR_METHODS),
-    Setting("hdr.face_size", "int", 512, "Cube-map face resolution of each capture.", 64, 2048,
-            "px"),
-    Setting("hdr.threshold_ldr", "float", 0.9, "t_l: only points whose LDR luminance exceeds "
-            "this are expanded.", 0.5, 1.0, "", label="t_l (overexposed)"),
-    Setting("hdr.threshold_ssd", "float", 1.0, "t_h: PatchMatch matches with a patch SSD above "
-            "this are rejected.", 0.01, 10.0, "", label="t_h (match SSD)", log=True),
-    Setting("hdr.neighbours", "int", 16, "k of the k-nearest-neighbour graph of the Poisson "
-            "colour editing.", 4, 64, "", label="Poisson k"),
-    Setting("hdr.bins", "int", 128, "Histogram bins of the exposure search.", 16, 1024, ""),
-    Setting("hdr.iterations", "int", 50, "Maximum bisection steps of the exposure search.", 1,
-            200, ""),
-)
-BY_KEY: dict[str, Setting] = {s.key: s for s in SETTINGS}
-GROUPS = ("view", "pbgi", "hdr")
 
 # Change keys of the session parts that are not table settings.
 DOCUMENT_KEYS = ("files.cloud", "files.hdr_cloud", "files.asset", "files.photo",
@@ -153,10 +36,10 @@ DOCUMENT_KEYS = ("files.cloud", "files.hdr_cloud", "files.asset", "files.photo",
 
 
 class Settings:
-    """Current values of ``SETTINGS`` plus the set of keys changed since the engine last looked."""
+    """Current values of the parameter table (``app.params.PARAMS``) plus the set of keys changed since the engine last looked."""
 
     def __init__(self, values: dict | None = None, source=None):
-        self._values = {s.key: s.default for s in SETTINGS}
+        self._values = {p.key: p.default for p in PARAMS}
         self._changed: set[str] = set()
         if values:
             self.update(values, source)
@@ -172,7 +55,7 @@ class Settings:
         spec = BY_KEY.get(key)
         if spec is None:
             raise ScanlightError(source, f"unknown setting {key!r}")
-        v = spec.coerce(value, source)
+        v = spec.clamp(value, source)
         if self._values[key] == v:
             return False
         self._values[key] = v
@@ -200,16 +83,6 @@ class Settings:
 
     def to_dict(self) -> dict:
         return dict(self._values)
-
-
-def markdown_table() -> str:
-    """The settings table for the README / docs, generated from ``SETTINGS``."""
-    rows = ["| key | type | default | range | unit | what it does |", "|---|---|---|---|---|---|"]
-    for s in SETTINGS:
-        rng = " / ".join(s.choices) if s.kind == "choice" else (
-            "" if s.kind == "bool" else f"{s.lo:g} .. {s.hi:g}")
-        rows.append(f"| `{s.key}` | {s.kind} | {s.default} | {rng} | {s.unit} | {s.tooltip} |")
-    return "\n".join(rows)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -2,10 +2,13 @@
 baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
 
     scanlight render --cloud room.ply --object obj.json [--material mat.json] --camera cam.json
-                     --mode classic|mipmapped|hybrid|envmap --microbuffer 24 --out img.exr
+                     [--mode classic|mipmapped|hybrid|envmap] [--microbuffer 24] --out img.exr
                      [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
                      [--background] [--budget-mb 1024] [--omega-tr-factor 32]
-                     [--parallax-tolerance 1]
+                     [--parallax-tolerance 1] [--envmap-face 128]
+
+The rendering options and their defaults are the parameter table's (app/params.py, the same as
+the viewer's; app/commands/options.py maps the flags).
 
 PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
 ``--background`` composites the object over the room's point splats seen from the same camera;
@@ -22,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from app.camera import parse_size
+from app.commands.options import add_param_options, param_values
 from app.errors import UsageError
 
 log = logging.getLogger(__name__)
-MODES = ("classic", "mipmapped", "hybrid", "envmap")
 
 
 def add_arguments(parser) -> None:
@@ -35,50 +38,22 @@ def add_arguments(parser) -> None:
     parser.add_argument("--material", metavar="M.json",
                         help="Disney material JSON for the whole asset (default: its own)")
     parser.add_argument("--camera", required=True, metavar="CAM.json", help="camera JSON")
-    parser.add_argument("--mode", choices=MODES, default="classic",
-                        help="classic PBGI (default), mipmapped, hybrid, or the envmap baseline")
-    parser.add_argument("--microbuffer", type=int, default=24, metavar="M",
-                        help="micro-buffer size M x M, 8..32 (default 24)")
     parser.add_argument("--out", required=True, metavar="IMG.exr", help="linear EXR output")
     parser.add_argument("--png", metavar="IMG.png", help="also a tone-mapped PNG")
-    parser.add_argument("--exposure", type=float, default=0.0, metavar="STOPS",
-                        help="PNG exposure in stops (default 0)")
     parser.add_argument("--stats", metavar="STATS.json", help="write timings and sizes as JSON")
     parser.add_argument("--size", metavar="WxH", help="override the camera's image size")
     parser.add_argument("--background", action="store_true",
                         help="composite over the room's point splats")
-    parser.add_argument("--budget-mb", type=float, default=1024.0, metavar="MB",
-                        help="GPU memory budget for micro-buffers (default 1024)")
-    parser.add_argument("--omega-tr-factor", type=float, default=32.0, metavar="F",
-                        help="hybrid: refine in parallel while Omega(A) > F x Omega (default 32)")
-    parser.add_argument("--parallax-tolerance", type=float, default=1.0, metavar="EPS",
-                        help="hybrid: share the far field between neighbouring receivers where it "
-                             "moves by < EPS micro-pixels (default 1; 0 = the exact Hybrid)")
+    add_param_options(parser, "render")
 
 
-def _check_args(args) -> None:
-    from app.pbgi.microbuffer import MAX_SIZE, MIN_SIZE
-    if not MIN_SIZE <= args.microbuffer <= MAX_SIZE:
-        raise UsageError(None, f"--microbuffer must be in [{MIN_SIZE}, {MAX_SIZE}], "
-                               f"got {args.microbuffer}")
+def _check_args(args) -> dict:
+    """The table's parameters from the command line (checked), after the file-name checks."""
     if Path(args.out).suffix.lower() != ".exr":
         raise UsageError(None, f"--out must name an .exr file, got {args.out!r}")
     if args.png and Path(args.png).suffix.lower() != ".png":
         raise UsageError(None, f"--png must name a .png file, got {args.png!r}")
-    if not np.isfinite(args.exposure):
-        raise UsageError(None, f"--exposure must be finite, got {args.exposure}")
-    if not (np.isfinite(args.budget_mb) and args.budget_mb > 0):
-        raise UsageError(None, f"--budget-mb must be > 0, got {args.budget_mb}")
-    if not (np.isfinite(args.omega_tr_factor) and args.omega_tr_factor > 0):
-        raise UsageError(None, f"--omega-tr-factor must be > 0, got {args.omega_tr_factor}")
-    if not (np.isfinite(args.parallax_tolerance) and 0 <= args.parallax_tolerance <= 4):
-        raise UsageError(None, f"--parallax-tolerance must be in [0, 4], "
-                               f"got {args.parallax_tolerance}")
-    if args.mode in ("mipmapped", "hybrid"):
-        from app.pbgi.renderer import IMPLEMENTED
-        if args.mode not in IMPLEMENTED:
-            raise UsageError(None, f"--mode {args.mode} is not available in this build "
-                                   f"(available: {', '.join(IMPLEMENTED)})")
+    return param_values(args, "render")
 
 
 def run(args) -> int:
@@ -90,7 +65,8 @@ def run(args) -> int:
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
 
-    _check_args(args)
+    values = _check_args(args)
+    exposure = values["view.exposure"]
     camera = load_camera(args.camera)
     if args.size:
         w, h = parse_size(args.size)
@@ -103,9 +79,7 @@ def run(args) -> int:
     r = Relighter()
     r.set_cloud(cloud)
     r.set_asset(mesh)
-    params = RenderParams(mode=args.mode, microbuffer=args.microbuffer,
-                          memory_budget_mb=args.budget_mb, omega_tr_factor=args.omega_tr_factor,
-                          parallax_tolerance=args.parallax_tolerance)
+    params = RenderParams.from_settings(values)
     res = r.render(camera, materials, params)
     img = res.image
     if not res.stats["completed"]:
@@ -123,17 +97,17 @@ def run(args) -> int:
     if args.png:
         from app.io.images import write_png
         from app.render.tonemap import tonemap_to_srgb8
-        write_png(args.png, tonemap_to_srgb8(rgba, args.exposure))
+        write_png(args.png, tonemap_to_srgb8(rgba, exposure))
     stats = dict(res.stats)
     stats.update({"cloud": str(args.cloud), "points": len(cloud), "object": str(args.object),
                   "triangles": int(mesh.n_faces), "camera": camera.to_dict(),
                   "renderer": r.ctx.info.get("GL_RENDERER"),
-                  "tonemapper": "Khronos PBR Neutral", "exposure": args.exposure,
+                  "tonemapper": "Khronos PBR Neutral", "exposure": exposure,
                   "bsh": {k: v for k, v in r.hierarchy.stats.items()
                           if isinstance(v, (int, float, str))}})
     if args.stats:
         write_json(args.stats, stats)
-    print(f"rendered {camera.width}x{camera.height} ({args.mode}, M={args.microbuffer}) in "
+    print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}) in "
           f"{stats['ms']:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0
 

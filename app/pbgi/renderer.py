@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from app.errors import ScanlightError
+from app.params import RENDER_KEYS, param_record
 from app.pbgi.microbuffer import (MAX_SIZE, MIN_SIZE, MicroBuffers, batch_size,
                                   bytes_per_receiver, entries)
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
@@ -66,40 +67,12 @@ IMPLEMENTED = tuple(m for m, (mod, _, _) in CUT_FINDERS.items() if _available(mo
 MB = 1024.0 * 1024.0
 
 
-@dataclass
+@param_record(*RENDER_KEYS)
 class RenderParams:
-    mode: str = "classic"          # classic | mipmapped | hybrid | envmap
-    microbuffer: int = 24          # 8..32
-    omega_tr_factor: float = 32.0  # Hybrid's threshold factor (exact Hybrid only)
-    parallax_tolerance: float = 1.0  # Hybrid's far-field sharing, micro-pixels; 0 = exact Hybrid
-    memory_budget_mb: float = 1024.0
-    envmap_face: int = 128         # cube-map face size of the envmap baseline
-
-    def validate(self) -> None:
-        if self.mode not in MODES:
-            raise ScanlightError(None, f"unknown mode {self.mode!r} (known: {', '.join(MODES)})")
-        if self.mode not in IMPLEMENTED:
-            raise ScanlightError(None, f"mode {self.mode!r} is not available in this build "
-                                       f"(available: {', '.join(IMPLEMENTED)})")
-        m = self.microbuffer
-        if not isinstance(m, (int, np.integer)) or not MIN_SIZE <= m <= MAX_SIZE:
-            raise ScanlightError(None, f"micro-buffer size must be an integer in [{MIN_SIZE}, "
-                                       f"{MAX_SIZE}], got {self.microbuffer!r}")
-        if not np.isfinite(self.memory_budget_mb) or self.memory_budget_mb <= 0:
-            raise ScanlightError(None, f"memory budget must be > 0 MB, "
-                                       f"got {self.memory_budget_mb!r}")
-        if not 8 <= int(self.envmap_face) <= 2048:
-            raise ScanlightError(None, f"envmap face size must be in [8, 2048], "
-                                       f"got {self.envmap_face!r}")
-        f = self.omega_tr_factor
-        if isinstance(f, bool) or not isinstance(f, (int, float, np.number)) \
-                or not np.isfinite(f) or f <= 0:
-            raise ScanlightError(None, f"omega_tr_factor must be a number > 0, got {f!r}")
-        e = self.parallax_tolerance
-        if isinstance(e, bool) or not isinstance(e, (int, float, np.number)) \
-                or not np.isfinite(e) or not 0 <= e <= 4:
-            raise ScanlightError(None, f"parallax_tolerance must be a number in [0, 4] "
-                                       f"micro-pixels, got {e!r}")
+    """What one render takes: the ``pbgi.*`` rows of app/params.py named in RENDER_KEYS (mode,
+    microbuffer, omega_tr_factor, parallax_tolerance, memory_budget_mb, envmap_face), with the
+    table's defaults and ranges. ``validated()`` returns a checked copy or raises ScanlightError.
+    """
 
 
 @dataclass
@@ -267,8 +240,7 @@ class Relighter:
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
                tile=None) -> RenderResult:
-        params = params or RenderParams()
-        params.validate()
+        params = (params or RenderParams()).validated()
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
         materials = list(self.mesh.materials if materials is None else materials)

@@ -10,9 +10,8 @@ import pytest
 from app.camera import Camera
 from app.errors import ScanlightError
 from app.material import Material
+from app.params import BY_KEY, PARAMS, markdown_table
 from app.settings import (
-    BY_KEY,
-    SETTINGS,
     AssetTransform,
     CaptureCamera,
     Session,
@@ -20,25 +19,27 @@ from app.settings import (
     last_session_path,
     load_last_session,
     load_session,
-    markdown_table,
     save_last_session,
 )
 
 
 def test_table_is_consistent():
     """Every default is valid for its own declaration, keys are unique and grouped."""
-    assert len(BY_KEY) == len(SETTINGS)
-    for s in SETTINGS:
+    assert len(BY_KEY) == len(PARAMS)
+    for s in PARAMS:
         assert s.group in ("view", "pbgi", "hdr"), s.key
-        assert s.tooltip.strip(), s.key
-        assert s.coerce(s.default) == s.default, s.key
+        assert s.help.strip(), s.key
+        assert s.clamp(s.default) == s.default and s.check(s.default) == s.default, s.key
         if s.kind in ("float", "int"):
-            assert s.lo < s.hi and s.lo <= s.default <= s.hi, s.key
+            assert s.lo < s.hi, s.key
+            assert s.default is None or s.lo <= s.default <= s.hi, s.key
+            lo, hi = s.slider_range
+            assert s.lo <= lo < hi <= s.hi, s.key
         if s.kind == "choice":
             assert s.default in s.choices and len(set(s.choices)) == len(s.choices), s.key
     table = markdown_table().splitlines()
-    assert len(table) == 2 + len(SETTINGS)
-    assert all(f"`{s.key}`" in markdown_table() for s in SETTINGS)
+    assert len(table) == 2 + len(PARAMS)
+    assert all(f"`{s.key}`" in markdown_table() for s in PARAMS)
 
 
 def test_change_set_records_only_real_changes():

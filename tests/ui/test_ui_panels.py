@@ -96,13 +96,13 @@ def test_file_dialog_browses_and_returns_a_path(ui, tmp_path, monkeypatch):
 def test_widgets_follow_the_settings_table(ui):
     """A setting changed through the model shows in the next frame's widget state, and the
     change reaches the engine's change set exactly once."""
-    from app.settings import SETTINGS
+    from app.params import PARAMS
     s = ui.session.settings
     s.take_changes()
     s.set("pbgi.microbuffer", 16)
     _draw(ui, 1)
     assert s.take_changes() == {"pbgi.microbuffer"}
-    assert {k.split(".")[0] for k in (x.key for x in SETTINGS)} == {"view", "pbgi", "hdr"}
+    assert {k.split(".")[0] for k in (x.key for x in PARAMS)} == {"view", "pbgi", "hdr"}
 
 
 def test_engine_and_settings_do_not_import_the_ui():

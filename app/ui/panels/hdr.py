@@ -6,13 +6,11 @@ from __future__ import annotations
 import numpy as np
 from imgui_bundle import imgui
 
-from app.settings import CLOUD_DISPLAYS
+from app.params import BY_KEY
 from app.ui import widgets
 from app.ui.panels.capture import _texture, release
 from app.ui.widgets import tooltip
 
-KEYS = ("hdr.method", "hdr.face_size", "hdr.threshold_ldr", "hdr.threshold_ssd",
-        "hdr.neighbours", "hdr.bins", "hdr.iterations")
 THUMB = 256
 
 
@@ -50,7 +48,7 @@ def draw(ui) -> None:
         imgui.same_line()
         if imgui.radio_button("luminance", method == "pmatch-lum"):
             s.settings.set("hdr.method", "pmatch-lum")
-    widgets.group(s.settings, KEYS)
+    widgets.panel_group(s.settings, "hdr")
     task = ui.hdr_task
     if task is not None and task.running:
         state, frac, stage = task.snapshot()
@@ -68,7 +66,7 @@ def draw(ui) -> None:
     if e.cloud is not None and e.cloud.hdr is not None:
         imgui.separator_text("show")
         cur = s.settings["view.cloud"]
-        for i, name in enumerate(CLOUD_DISPLAYS):
+        for i, name in enumerate(BY_KEY["view.cloud"].choices):
             if i:
                 imgui.same_line()
             if imgui.radio_button(name.upper() if name != "difference" else "difference",

@@ -7,14 +7,10 @@ from imgui_bundle import imgui
 
 from app.ui import widgets
 
-KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.render_scale", "pbgi.preview_scale",
-        "pbgi.omega_tr_factor", "pbgi.parallax_tolerance", "pbgi.memory_budget_mb",
-        "pbgi.frame_budget_ms")
-
 
 def draw(ui) -> None:
     e = ui.engine
-    widgets.group(ui.session.settings, KEYS)
+    widgets.panel_group(ui.session.settings, "pbgi")
     if not e.renderer_available:
         imgui.text_colored((1, 0.6, 0.5, 1), "renderer unavailable")
         imgui.text_wrapped(e.relighter_error or "")

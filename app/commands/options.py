@@ -1,0 +1,133 @@
+"""Command-line options generated from the parameter table (app/params.py).
+
+Each command lists which parameters it exposes and under which flag; type, default, range,
+unit and help come from the table, so ``scanlight render`` and the viewer cannot disagree on a
+default (tests/cli/test_params.py checks it) and a range is checked in one place. This file is
+only a name map, like f3d's F3DOptionsTools.h over its options.json.
+
+A flag is ``--`` + the parameter's name with dashes unless the map names it otherwise (the
+short names the paper uses: ``--tl``, ``--th``, ``--k``). ``DEPRECATED`` keeps old spellings
+working with a warning: ``expand --exposure`` and ``evaluate --exposure`` meant the scan's alpha,
+not exposure in EV as in ``render``, and are now ``--alpha``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+from app.errors import ScanlightError, UsageError
+from app.params import BY_KEY, EXPAND_KEYS, Param
+
+log = logging.getLogger(__name__)
+
+
+def _flags(keys, renamed: dict | None = None) -> dict[str, str]:
+    """flag -> key, the default flag unless ``renamed`` maps the key to another."""
+    renamed = renamed or {}
+    return {renamed.get(k, "--" + BY_KEY[k].name.replace("_", "-")): k for k in keys}
+
+
+_RENDER = ("pbgi.mode", "pbgi.microbuffer", "pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
+           "pbgi.parallax_tolerance", "pbgi.envmap_face")
+_HDR_SHORT = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th",
+              "hdr.neighbours": "--k", "hdr.iterations": "--exposure-iterations"}
+
+# command -> {flag: key}
+COMMAND_FLAGS: dict[str, dict[str, str]] = {
+    "render": _flags(_RENDER + ("view.exposure",),
+                     {"pbgi.memory_budget_mb": "--budget-mb"}),
+    "expand": _flags(EXPAND_KEYS, _HDR_SHORT),
+    "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha"), _HDR_SHORT),
+    "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
+                            "pbgi.parallax_tolerance"), {"pbgi.memory_budget_mb": "--budget-mb"}),
+    "bench classic": _flags(("pbgi.memory_budget_mb",), {"pbgi.memory_budget_mb": "--budget-mb"}),
+    "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed"),
+                           {"hdr.poisson_solver": "--solver"}),
+}
+# command -> {old flag: new flag}
+DEPRECATED: dict[str, dict[str, str]] = {
+    "expand": {"--exposure": "--alpha"},
+    "evaluate": {"--exposure": "--alpha"},
+}
+
+
+def _dest(key: str) -> str:
+    return "param__" + key.replace(".", "__")
+
+
+def _help(p: Param) -> str:
+    default = "not set" if p.default is None else p.default
+    rng = p.range_text()
+    unit = f" {p.unit}" if p.unit else ""
+    return f"{p.help} (default {default}{unit}" + (f"; {rng}" if rng and p.kind != "choice"
+                                                     else "") + ")"
+
+
+def _typed(p: Param):
+    """argparse type: the string as the parameter's kind (range checks come later, with the
+    flag's name, in ``param_values``)."""
+    if p.kind == "int":
+        return int
+    if p.kind == "float":
+        return float
+    if p.kind == "bool":
+        def parse_bool(text: str) -> bool:
+            t = text.strip().lower()
+            if t in ("1", "true", "yes", "on"):
+                return True
+            if t in ("0", "false", "no", "off"):
+                return False
+            raise argparse.ArgumentTypeError(f"expected true or false, got {text!r}")
+        return parse_bool
+    return str
+
+
+class _Deprecated(argparse.Action):
+    def __init__(self, option_strings, dest, new_flag: str = "", **kw):
+        self.new_flag = new_flag
+        super().__init__(option_strings, dest, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        log.warning("%s is deprecated: use %s", option_string, self.new_flag)
+        setattr(namespace, self.dest, values)
+
+
+def add_param_options(parser, command: str) -> None:
+    """Add the options of ``command`` (a key of COMMAND_FLAGS) to an argparse parser."""
+    for flag, key in COMMAND_FLAGS[command].items():
+        p = BY_KEY[key]
+        kw = {"dest": _dest(key), "type": _typed(p), "default": p.default,
+              "help": _help(p)}
+        if p.kind == "choice":
+            kw["choices"] = p.choices
+        elif p.kind in ("int", "float"):
+            kw["metavar"] = p.unit.upper() if p.unit.isalpha() and len(p.unit) <= 3 else \
+                p.name.upper()
+        parser.add_argument(flag, **kw)
+    for old, new in DEPRECATED.get(command, {}).items():
+        key = COMMAND_FLAGS[command][new]
+        parser.add_argument(old, dest=_dest(key), type=_typed(BY_KEY[key]), action=_Deprecated,
+                            new_flag=new, default=argparse.SUPPRESS,
+                            help=f"deprecated spelling of {new}")
+
+
+def param_values(args, command: str) -> dict:
+    """key -> value of every parameter of ``command``, checked against the table; a bad value is
+    a UsageError naming the flag (exit 2)."""
+    out = {}
+    for flag, key in COMMAND_FLAGS[command].items():
+        p = BY_KEY[key]
+        value = getattr(args, _dest(key), p.default)
+        try:
+            out[key] = p.check(value, what=flag)
+        except ScanlightError as err:
+            raise UsageError(None, err.reason) from None
+    return out
+
+
+def flag_of(command: str, key: str) -> str:
+    return next(f for f, k in COMMAND_FLAGS[command].items() if k == key)
+
+
+__all__ = ["COMMAND_FLAGS", "DEPRECATED", "add_param_options", "param_values", "flag_of"]

@@ -1,0 +1,347 @@
+"""Every user-facing parameter of Scanlight, declared once.
+
+``PARAMS`` is the one table: key, kind, default, range, unit, help, and what a change redoes.
+Everything else is generated from it:
+
+- the viewer's widgets (app/ui/widgets.py) and its plain settings model and session JSON
+  (app/settings.py);
+- the parameter records the engines take, ``RenderParams`` (app/pbgi/renderer.py) and
+  ``ExpandParams`` (app/hdr/pipeline.py), through ``param_record``: a record's fields, defaults
+  and validation are its group's rows;
+- the command-line options of ``render``, ``expand``, ``evaluate`` and ``bench``
+  (app/commands/options.py maps flag names onto keys, as f3d's F3DOptionsTools maps its CLI
+  onto options.json);
+- the README's parameter table (``markdown_table``; tests/cli/test_params.py keeps it in sync).
+
+So the CLI and the window share defaults by construction, and a range is checked in one place.
+
+Kinds: ``float``, ``int``, ``bool``, ``choice`` (one of ``choices``). ``optional`` parameters may
+also be None ("not set": the engine decides, e.g. the exposure search finds alpha). A value out
+of ``lo .. hi`` is an error for a record or a command line (``Param.check``); the viewer clamps
+instead (``Param.clamp``: a slider or an old session never fails). ``ui`` rows get a widget;
+``soft`` narrows a slider's travel below the full range (Blender's soft limits).
+
+``redo`` says what a change invalidates, for the engine's change handlers: "gi" re-gathers the
+asset, "display" only re-tone-maps / recomposites, "room" redraws the point splats, "job" only
+affects the next background job, "none" nothing already computed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from app.errors import ScanlightError
+
+KINDS = ("float", "int", "bool", "choice")
+REDO = ("gi", "display", "room", "job", "none")
+
+
+@dataclass(frozen=True)
+class Param:
+    key: str                      # "group.name"; ``name`` is the record field
+    kind: str
+    default: Any
+    help: str
+    lo: float | None = None
+    hi: float | None = None
+    unit: str = ""
+    choices: tuple[str, ...] = ()
+    label: str = ""
+    log: bool = False             # logarithmic slider
+    redo: str = "none"
+    ui: bool = True
+    optional: bool = False        # None allowed ("not set")
+    soft: tuple[float, float] | None = None   # the slider's travel, inside lo .. hi
+
+    def __post_init__(self):
+        assert self.kind in KINDS and self.redo in REDO, self.key
+        assert self.kind != "choice" or self.default in self.choices, self.key
+        assert self.optional or self.default is not None, self.key
+
+    @property
+    def group(self) -> str:
+        return self.key.split(".", 1)[0]
+
+    @property
+    def name(self) -> str:
+        return self.key.split(".", 1)[1]
+
+    @property
+    def title(self) -> str:
+        return self.label or self.name.replace("_", " ")
+
+    @property
+    def slider_range(self) -> tuple[float, float]:
+        return self.soft if self.soft is not None else (self.lo, self.hi)
+
+    @property
+    def gi(self) -> bool:
+        """Does a change alter the relit image (re-gather)?"""
+        return self.redo == "gi"
+
+    def range_text(self) -> str:
+        if self.kind == "choice":
+            return " / ".join(self.choices)
+        if self.kind == "bool":
+            return ""
+        return f"{self.lo:g} .. {self.hi:g}"
+
+    def _typed(self, value, what: str, source):
+        """``value`` converted to the kind (no range check), or a ScanlightError."""
+        if value is None and self.optional:
+            return None
+        if self.kind == "bool":
+            if isinstance(value, (bool, np.bool_)):
+                return bool(value)
+            if isinstance(value, (int, float)) and value in (0, 1):
+                return bool(value)
+            raise ScanlightError(source, f"{what} must be true or false, got {value!r}")
+        if self.kind == "choice":
+            if isinstance(value, str) and value in self.choices:
+                return value
+            raise ScanlightError(source, f"{what} must be one of {', '.join(self.choices)}, "
+                                         f"got {value!r}")
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+            raise ScanlightError(source, f"{what} must be a number, got {value!r}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise ScanlightError(source, f"{what} must be finite, got {value!r}")
+        if self.kind == "int" and v != int(v):
+            raise ScanlightError(source, f"{what} must be a whole number, got {value!r}")
+        return int(v) if self.kind == "int" else v
+
+    def check(self, value, source=None, what: str | None = None):
+        """The value, typed and inside ``lo .. hi``; otherwise a ScanlightError naming it."""
+        what = what or f"parameter {self.key!r}"
+        v = self._typed(value, what, source)
+        if v is not None and self.kind in ("float", "int") and not self.lo <= v <= self.hi:
+            raise ScanlightError(source, f"{what} must be in [{self.lo:g}, {self.hi:g}]"
+                                         f"{' ' + self.unit if self.unit else ''}, got {value!r}")
+        return v
+
+    def clamp(self, value, source=None, what: str | None = None):
+        """The value typed and clamped to ``lo .. hi`` (the viewer's and sessions' rule)."""
+        what = what or f"setting {self.key!r}"
+        if self.kind == "int" and isinstance(value, (float, np.floating)) \
+                and math.isfinite(value):
+            value = int(round(float(value)))       # a slider or a hand-edited session
+        v = self._typed(value, what, source)
+        if v is None or self.kind not in ("float", "int"):
+            return v
+        v = min(max(v, self.lo), self.hi)
+        return int(v) if self.kind == "int" else float(v)
+
+
+def _f(key, default, help, lo, hi, unit="", **kw) -> Param:
+    return Param(key, "float", default, help, lo, hi, unit, **kw)
+
+
+def _i(key, default, help, lo, hi, unit="", **kw) -> Param:
+    return Param(key, "int", default, help, lo, hi, unit, **kw)
+
+
+def _c(key, default, help, choices, **kw) -> Param:
+    return Param(key, "choice", default, help, choices=tuple(choices), **kw)
+
+
+def _b(key, default, help, **kw) -> Param:
+    return Param(key, "bool", default, help, **kw)
+
+
+RENDER_MODES = ("classic", "mipmapped", "hybrid", "envmap")   # app/pbgi/modes.py: one class each
+HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
+
+PARAMS: tuple[Param, ...] = (
+    # -- display (the viewer) -------------------------------------------------------------------
+    _f("view.exposure", 0.0, "Exposure before the tone mapper: radiance x 2^EV.", -10.0, 10.0,
+       "EV", redo="display"),
+    _c("view.tonemap", "pbr-neutral", "Tone mapper: Khronos PBR Neutral keeps base colours "
+       "recognisable and rolls off highlights; 'clamp' shows linear values clipped at 1.",
+       ("pbr-neutral", "clamp"), redo="display"),
+    _c("view.cloud", "ldr", "Which room colours to show: the LDR scan, the HDR-expanded cloud, "
+       "or the difference map log2(Y_hdr / Y_ldr) in false colour (paper Fig. 1).",
+       ("ldr", "hdr", "difference"), label="cloud colours", redo="gi"),
+    _f("view.fov_y", 50.0, "Vertical field of view of the viewport camera.", 10.0, 120.0, "deg",
+       label="field of view", redo="gi"),
+    _f("view.splat_scale", 2.0, "Radius multiplier of the room's point splats (1 = twice the "
+       "median point spacing; 2 closes the gaps of a random scan up close).", 0.25, 4.0, "x",
+       label="splat size", redo="room"),
+    _b("view.show_cameras", True, "Draw the capture cameras as gizmos.", redo="display"),
+    _b("view.show_gizmo", True, "Show the asset transform gizmo in the viewport.",
+       redo="display"),
+    _f("view.fly_speed", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s", log=True),
+    # -- PBGI (RenderParams, plus the viewer's render_scale, preview_scale, frame_budget_ms) --------------------------------------------------------------------
+    _c("pbgi.mode", "classic", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
+       "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "
+       "near field per pixel (several times faster). Environment map: one cube map from the "
+       "asset centre.", RENDER_MODES, redo="gi"),
+    _i("pbgi.microbuffer", 24, "Micro-buffer resolution M (M x M micro-pixels per receiver).",
+       8, 32, "px", redo="gi"),
+    _f("pbgi.render_scale", 1.0, "Final GI resolution relative to the viewport (refined in "
+       "tiles when the view is idle).", 0.125, 1.0, "x", redo="gi"),
+    _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "
+       "with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x", redo="gi"),
+    _f("pbgi.omega_tr_factor", 32.0, "Exact Hybrid (parallax tolerance 0): a node is refined "
+       "per pixel once its solid angle drops below this factor times the micro-pixel's.",
+       1.0, 256.0, "x", label="Omega_tr factor", log=True, redo="gi"),
+    _f("pbgi.parallax_tolerance", 1.0, "Hybrid: the far field is walked once per block of "
+       "pixels where seen from any pixel of the block it moves by less than this "
+       "(micro-pixels); 0 = the exact Hybrid (the same cut as Classic, slower).", 0.0, 4.0, "px",
+       label="parallax tolerance", redo="gi"),
+    _f("pbgi.memory_budget_mb", 1024.0, "GPU memory the micro-buffers and the mipmapped/hybrid "
+       "pair lists may use before they fall back to smaller batches.", 0.01, 65536.0, "MB",
+       label="memory budget", log=True, soft=(64.0, 8192.0), redo="gi"),
+    _f("pbgi.frame_budget_ms", 80.0, "GI work per frame while refining: tiles are sized so one "
+       "frame stays near this time.", 10.0, 1000.0, "ms", label="frame budget", log=True),
+    _i("pbgi.envmap_face", 128, "Environment-map baseline: cube-map face size of the room seen "
+       "from the asset centre.", 8, 2048, "px", label="envmap face", redo="gi", ui=False),
+    # -- HDR expansion (ExpandParams) -----------------------------------------------------------
+    _c("hdr.method", "pmatch-rgb", "Expansion strategy: generalised PatchMatch transferring "
+       "colour or luminance from the photo, or inverse tone mapping (Landis / Banterle; '-pc' = "
+       "per point).", HDR_METHODS, redo="job"),
+    _i("hdr.face_size", 512, "Cube-map face resolution of each capture.", 16, 8192, "px",
+       soft=(64, 2048), redo="job"),
+    _f("hdr.threshold_ldr", 0.9, "t_l: only points whose LDR luminance exceeds this are "
+       "expanded.", 0.01, 0.999, "", label="t_l (overexposed)", soft=(0.5, 0.999), redo="job"),
+    _f("hdr.threshold_ssd", 1.0, "t_h: PatchMatch matches with a patch SSD above this are "
+       "rejected.", 0.001, 1000.0, "", label="t_h (match SSD)", log=True, soft=(0.01, 10.0),
+       redo="job"),
+    _i("hdr.neighbours", 16, "k of the k-nearest-neighbour graph of the Poisson colour editing.",
+       1, 256, "", label="Poisson k", soft=(4, 64), redo="job"),
+    _i("hdr.bins", 128, "Histogram bins of the exposure search.", 2, 65536, "",
+       soft=(16, 1024), redo="job"),
+    _i("hdr.iterations", 50, "Maximum bisection steps of the exposure search.", 0, 1000, "",
+       label="exposure iterations", soft=(1, 200), redo="job"),
+    _f("hdr.alpha", None, "The scan's exposure alpha (LDR = clamp(alpha x HDR)); not set: found "
+       "by the exposure search (paper eq. 1).", 1e-9, 1e9, "", optional=True, ui=False,
+       redo="job"),
+    _b("hdr.exposure_include_clipped", False, "Exposure search: also match the photo's clipped "
+       "pixels (see app/hdr/exposure.py).", ui=False, redo="job"),
+    _f("hdr.splat_scale", 1.0, "Capture splat radius relative to the point spacing.", 0.01,
+       100.0, "x", ui=False, redo="job"),
+    _i("hdr.pm_face_size", 128, "PatchMatch works on capture faces box-downsampled to this.",
+       16, 4096, "px", ui=False, redo="job"),
+    _i("hdr.pm_photo_size", 256, "PatchMatch works on the photo box-downsampled to this.", 16,
+       4096, "px", ui=False, redo="job"),
+    _i("hdr.pm_patch_radius", 3, "PatchMatch patch radius (3 = 7x7 patches).", 1, 8, "px",
+       ui=False, redo="job"),
+    _i("hdr.pm_iterations", 4, "PatchMatch iterations per pyramid level.", 1, 100, "",
+       ui=False, redo="job"),
+    _i("hdr.pm_levels", 3, "PatchMatch pyramid levels.", 1, 8, "", ui=False, redo="job"),
+    _f("hdr.pm_scale_min", 0.25, "PatchMatch: smallest patch scale searched.", 1e-3, 1e3, "x",
+       ui=False, redo="job"),
+    _f("hdr.pm_scale_max", 4.0, "PatchMatch: largest patch scale searched.", 1e-3, 1e3, "x",
+       ui=False, redo="job"),
+    _c("hdr.pm_match", "rgb", "PatchMatch matches on colour or luminance (what is transferred "
+       "is the method's: pmatch-rgb colour, pmatch-lum luminance).", ("rgb", "luminance"),
+       ui=False, redo="job"),
+    _f("hdr.pm_scale_tolerance", 0.75, "Octaves a match's scale may stray from the common one; "
+       "not set: no check.", 0.0, 100.0, "octaves", optional=True, ui=False, redo="job"),
+    _f("hdr.good_match_ssd", 0.02, "A textured pixel matched better than this x t_h is a close "
+       "match.", 0.0, 1.0, "", ui=False, redo="job"),
+    _f("hdr.good_match_min", 0.02, "Warn (another scene?) when fewer textured pixels match "
+       "closely.", 0.0, 1.0, "", ui=False, redo="job"),
+    _f("hdr.landis_threshold", None, "Landis' operator threshold; not set: t_l.", 0.0, 1.0, "",
+       optional=True, ui=False, redo="job"),
+    _f("hdr.landis_exponent", 2.0, "Landis' operator exponent.", 0.01, 100.0, "", ui=False,
+       redo="job"),
+    _f("hdr.l_max_percentile", 99.9, "Inverse tone mapping peak: this percentile of the photo's "
+       "luminance.", 50.0, 100.0, "%", ui=False, redo="job"),
+    _c("hdr.poisson_solver", "auto", "Poisson fill solver: sparse LU, conjugate gradients, or "
+       "auto (LU up to 100k unknowns; app/hdr/poisson.py).", ("auto", "direct", "cg"),
+       ui=False, redo="job"),
+    _i("hdr.seed", 0, "Random seed of PatchMatch's initialisation.", 0, 2**31 - 1, "",
+       ui=False, redo="job"),
+)
+
+BY_KEY: dict[str, Param] = {p.key: p for p in PARAMS}
+GROUPS = ("view", "pbgi", "hdr")
+assert len(BY_KEY) == len(PARAMS), "a key is declared twice"
+
+
+def group(name: str, ui_only: bool = False) -> tuple[Param, ...]:
+    return tuple(p for p in PARAMS if p.group == name and (p.ui or not ui_only))
+
+
+def defaults(keys=None) -> dict:
+    return {k: BY_KEY[k].default for k in (keys or BY_KEY)}
+
+
+# ------------------------------------------------------------------------------------------------
+# Records: a dataclass whose fields are rows of the table.
+
+def param_record(*keys: str):
+    """Class decorator: the class becomes a frozen dataclass with one field per key (named by the
+    key's ``name``, default from the table) plus ``validated()``, ``from_dict()``,
+    ``from_settings()`` and ``to_settings()``. The class body keeps its own methods and
+    properties; it declares no field of its own."""
+
+    def make(cls):
+        specs = [BY_KEY[k] for k in keys]
+        fields = [(p.name, Any, dataclasses.field(default=p.default)) for p in specs]
+        ns = {k: v for k, v in vars(cls).items() if k not in ("__dict__", "__weakref__")}
+        rec = dataclasses.make_dataclass(cls.__name__, fields, namespace=ns, frozen=True)
+        rec.__module__ = cls.__module__
+        rec.__qualname__ = cls.__qualname__
+        rec.PARAMS = tuple(specs)
+        rec.KEYS = tuple(keys)
+
+        def validated(self, source=None):
+            """self with every field checked against its row (typed, in range), or a
+            ScanlightError naming the first bad one."""
+            vals = {p.name: p.check(getattr(self, p.name), source,
+                                    f"{cls.__name__.lower().replace('params', '')} parameter "
+                                    f"{p.name!r}")
+                    for p in specs}
+            out = dataclasses.replace(self, **vals)
+            extra = getattr(out, "_check", None)
+            if extra is not None:
+                extra(source)
+            return out
+
+        def from_dict(d: dict, source=None):
+            """From field names (or full keys); unknown names are an error."""
+            names = {p.name for p in specs}
+            vals = {}
+            for k, v in dict(d).items():
+                n = k.split(".", 1)[1] if k in BY_KEY and BY_KEY[k] in specs else k
+                if n not in names:
+                    raise ScanlightError(source, f"unknown {cls.__name__} field {k!r} "
+                                                 f"(known: {', '.join(sorted(names))})")
+                vals[n] = v
+            return rec(**vals).validated(source)
+
+        def from_settings(settings, **overrides):
+            """From anything indexable by key (app.settings.Settings, a dict of keys)."""
+            return rec(**{p.name: settings[p.key] for p in specs}, **overrides).validated()
+
+        def to_settings(self) -> dict:
+            return {p.key: getattr(self, p.name) for p in specs}
+
+        rec.validated = validated
+        rec.from_dict = staticmethod(from_dict)
+        rec.from_settings = staticmethod(from_settings)
+        rec.to_settings = to_settings
+        return rec
+
+    return make
+
+
+RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
+               "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face")
+EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
+
+
+def markdown_table(keys=None) -> str:
+    """The parameter table for the README (tests/cli/test_params.py checks the README holds it)."""
+    rows = ["| key | type | default | range | unit | what it does |", "|---|---|---|---|---|---|"]
+    for p in (BY_KEY[k] for k in (keys or BY_KEY)):
+        default = "not set" if p.default is None else p.default
+        rows.append(f"| `{p.key}` | {p.kind} | {default} | {p.range_text()} | {p.unit} | "
+                    f"{p.help} |")
+    return "\n".join(rows)

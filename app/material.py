@@ -6,7 +6,7 @@ Burley's BRDF explorer; ``base_color`` is linear RGB.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, make_dataclass
 
 import numpy as np
 
@@ -40,28 +40,8 @@ DEFAULT_BASE_COLOR = (0.82, 0.67, 0.16)
 ALL_NAMES = ("base_color",) + SCALAR_NAMES
 
 
-@dataclass
-class Material:
-    """One Disney Principled material, optionally with textures (linear base colour etc.)."""
-
-    base_color: tuple[float, float, float] = DEFAULT_BASE_COLOR
-    subsurface: float = 0.0
-    metallic: float = 0.0
-    specular: float = 0.5
-    specular_tint: float = 0.0
-    roughness: float = 0.5
-    anisotropic: float = 0.0
-    sheen: float = 0.0
-    sheen_tint: float = 0.5
-    clearcoat: float = 0.0
-    clearcoat_gloss: float = 1.0
-    name: str = "material"
-    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    # Optional textures as float32 arrays (H, W, C): base colour (linear RGB[A]),
-    # metallic-roughness (glTF: B = metallic, G = roughness), tangent-space normal map.
-    base_color_texture: np.ndarray | None = field(default=None, repr=False)
-    metallic_roughness_texture: np.ndarray | None = field(default=None, repr=False)
-    normal_texture: np.ndarray | None = field(default=None, repr=False)
+class _MaterialMethods:
+    """The behaviour of Material; its fields are generated from SCALAR_PARAMS below."""
 
     def scalars(self) -> np.ndarray:
         return np.array([getattr(self, n) for n in SCALAR_NAMES], dtype=np.float32)
@@ -77,6 +57,24 @@ class Material:
         for key, val in values.items():
             set_param(new, key, val)
         return new
+
+
+# One Disney Principled material, optionally with textures: base colour, the scalar parameters
+# in SCALAR_PARAMS' order with its defaults (declared once, there), then name, emissive and the
+# optional float32 (H, W, C) textures - base colour (linear RGB[A]), metallic-roughness (glTF:
+# B = metallic, G = roughness) and the tangent-space normal map.
+Material = make_dataclass(
+    "Material",
+    [("base_color", tuple, field(default=DEFAULT_BASE_COLOR))]
+    + [(p.name, float, field(default=p.default)) for p in SCALAR_PARAMS]
+    + [("name", str, field(default="material")),
+       ("emissive", tuple, field(default=(0.0, 0.0, 0.0))),
+       ("base_color_texture", object, field(default=None, repr=False)),
+       ("metallic_roughness_texture", object, field(default=None, repr=False)),
+       ("normal_texture", object, field(default=None, repr=False))],
+    bases=(_MaterialMethods,))
+Material.__module__ = __name__
+Material.__doc__ = "One Disney Principled material (fields: see the comment above)."
 
 
 PRESETS: dict[str, dict] = {

@@ -89,6 +89,8 @@ class Param:
             return " / ".join(self.choices)
         if self.kind == "bool":
             return ""
+        if self.kind == "int":
+            return f"{int(self.lo)} .. {int(self.hi)}"
         return f"{self.lo:g} .. {self.hi:g}"
 
     def _typed(self, value, what: str, source):
@@ -120,8 +122,9 @@ class Param:
         what = what or f"parameter {self.key!r}"
         v = self._typed(value, what, source)
         if v is not None and self.kind in ("float", "int") and not self.lo <= v <= self.hi:
-            raise ScanlightError(source, f"{what} must be in [{self.lo:g}, {self.hi:g}]"
-                                         f"{' ' + self.unit if self.unit else ''}, got {value!r}")
+            rng = self.range_text().replace(" .. ", ", ")
+            unit = f" {self.unit}" if self.unit else ""
+            raise ScanlightError(source, f"{what} must be in [{rng}]{unit}, got {value!r}")
         return v
 
     def clamp(self, value, source=None, what: str | None = None):
@@ -175,7 +178,7 @@ PARAMS: tuple[Param, ...] = (
     _b("view.show_gizmo", True, "Show the asset transform gizmo in the viewport.",
        redo="display"),
     _f("view.fly_speed", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s", log=True),
-    # -- PBGI (RenderParams, plus the viewer's render_scale, preview_scale, frame_budget_ms) --------------------------------------------------------------------
+    # -- PBGI: RenderParams, plus the viewer-only render_scale, preview_scale, frame_budget_ms -----
     _c("pbgi.mode", "classic", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
        "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "
        "near field per pixel (several times faster). Environment map: one cube map from the "

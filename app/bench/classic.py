@@ -51,7 +51,8 @@ def run(args) -> list[dict]:
     from app.io.formats import object_from_dict, placed_mesh
     from app.material import Material
     from app.pbgi.microbuffer import MAX_SIZE, MIN_SIZE
-    from app.pbgi.renderer import IMPLEMENTED, Relighter, RenderParams
+    from app.params import RENDER_MODES
+    from app.pbgi.renderer import Relighter, RenderParams
 
     viewports = _ints(args.viewports, "viewports")
     sizes = _ints(args.microbuffers, "microbuffers")
@@ -59,8 +60,9 @@ def run(args) -> list[dict]:
     modes = [v.strip() for v in args.modes.split(",") if v.strip()]
     if any(v not in VIEWS for v in views) or not views:
         raise UsageError(None, f"--views must be among {', '.join(VIEWS)}, got {args.views!r}")
-    if any(m not in IMPLEMENTED for m in modes) or not modes:
-        raise UsageError(None, f"--modes must be among {', '.join(IMPLEMENTED)}, got {args.modes!r}")
+    if any(m not in RENDER_MODES for m in modes) or not modes:
+        raise UsageError(None, f"--modes must be among {', '.join(RENDER_MODES)}, "
+                               f"got {args.modes!r}")
     if any(not MIN_SIZE <= m <= MAX_SIZE for m in sizes):
         raise UsageError(None, f"--microbuffers must be in [{MIN_SIZE}, {MAX_SIZE}]")
     if any(not 1 <= v <= 4096 for v in viewports):
@@ -84,21 +86,20 @@ def run(args) -> list[dict]:
                     cam = default_views(vp, vp)[view]
                     best = None
                     for _ in range(args.repeat):
-                        r._mb_key = None          # time the whole frame, never a reuse
+                        r.forget_microbuffers()   # time the whole frame, never a reuse
                         res = r.render(cam, [material], RenderParams(
                             mode=mode, microbuffer=m, memory_budget_mb=args.budget_mb))
-                        if best is None or res.stats["ms"] < best["ms"]:
+                        if best is None or res.stats.ms < best.ms:
                             best = res.stats
                     s = best
-                    mps = s["receivers"] * m * m / max(s["ms"] / 1e3, 1e-9)
+                    mps = s.receivers * m * m / max(s.ms / 1e3, 1e-9)
                     rec = record("classic", {"mode": mode, "viewport": vp, "microbuffer": m,
                                              "view": view},
-                                 {"ms": s["ms"], "mb": s["mb"], "micropixels_per_s": mps,
-                                  "receivers": s["receivers"],
-                                  "nodes_visited": s.get("nodes_visited", 0.0),
-                                  "ms_cut": s["ms_cut"], "ms_gather": s["ms_gather"],
-                                  "batches": s["batches"], "completed": float(s["completed"])})
-                    log.info("%s %d M=%d %s: %.0f ms", mode, vp, m, view, s["ms"])
+                                 {"ms": s.ms, "mb": s.mb, "micropixels_per_s": mps,
+                                  "receivers": s.receivers, "nodes_visited": s.nodes_visited,
+                                  "ms_cut": s.ms_cut, "ms_gather": s.ms_gather,
+                                  "batches": s.batches, "completed": float(s.completed)})
+                    log.info("%s %d M=%d %s: %.0f ms", mode, vp, m, view, s.ms)
                     records.append(rec)
     r.release()
     return records

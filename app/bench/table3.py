@@ -12,10 +12,11 @@ case.microbuffer, case.view (closeup / whole); metrics.ms (the whole render: G-b
 gather, measured with ctx.finish()), metrics.mb (the mode's *extra* memory: what the cut finder
 allocates besides the micro-buffers, the G-buffer and the BSH, which every mode shares - the
 paper's Table 3 bottom; for Classic its resume state), plus ms_cut, ms_gather, mb_total,
-completed, batches, tile_halvings, nodes_visited, the accuracy side of the trade when Classic ran in
-the same cell (diff_mean_pct / diff_p99_pct: per-pixel relative difference to Classic's image, and
-mean_ratio) and, for Mipmapped/Hybrid, the pair counts,
-the phases' times and mb_extra_used (the part of the pair streams actually filled). After the plain table it prints the
+completed, batches, tile_halvings, nodes_visited, the accuracy side of the trade when Classic ran
+in the same cell (diff_mean_pct / diff_p99_pct: per-pixel relative difference to Classic's image,
+and mean_ratio), for Mipmapped and the exact Hybrid the pair counts, the phases' times and
+mb_extra_used (the part of the pair streams actually filled), for the default Hybrid the far-field
+sharing's blocks and times (every figure: app/pbgi/stats.py). After the plain table it prints the
 markdown table laid out like the paper's (one block per mode, rows = viewports, columns = view x
 micro-buffer), the classic/hybrid ratio per cell and the memory blocks.
 
@@ -121,13 +122,13 @@ def _params(mode, m, args):
 
 def _render(r, cam, mode, m, args, cold: bool = False):
     """One render with the micro-buffer cache defeated (every repeat does the full work).
-    ``cold``: the pair engines first free what earlier cells allocated, so a cell's memory
-    figure is its own (their buffers are reused across renders while big enough)."""
-    r._mb_key = None
-    if cold:
-        for finder in r.cut_finders.values():
-            if hasattr(finder, "pyramid"):
-                finder.release()
+    ``cold``: Mipmapped's pair engine first frees what earlier cells allocated, so a cell's
+    memory figure is its own (its buffers are reused across renders while big enough, and
+    re-allocated on demand)."""
+    r.forget_microbuffers()
+    held = r.modes.get("mipmapped")
+    if cold and held is not None:
+        held.cut.release()
     return r.render(cam, [_material()], _params(mode, m, args))
 
 
@@ -150,7 +151,7 @@ def run(args) -> list[dict]:
                         t0 = time.perf_counter()
                         res = _render(r, cams[view], mode, m, args, cold=rep == 0)
                         wall = time.perf_counter() - t0
-                        if mode not in best or res.stats["ms"] < best[mode][0].stats["ms"]:
+                        if mode not in best or res.stats.ms < best[mode][0].stats.ms:
                             best[mode] = (res, wall)
                 for mode in args.modes:
                     res, wall = best[mode]
@@ -160,7 +161,7 @@ def run(args) -> list[dict]:
                     records.append(record("table3", {"mode": mode, "viewport": size, "microbuffer": m,
                                                      "view": view}, metrics))
                 log.info("table3 %dx%d M=%d %s: %s", size, size, m, view,
-                         ", ".join(f"{k} {best[k][0].stats['ms']:.0f} ms" for k in args.modes))
+                         ", ".join(f"{k} {best[k][0].stats.ms:.0f} ms" for k in args.modes))
     text = markdown(records)
     print(text)
     if args.markdown:
@@ -184,20 +185,25 @@ def difference(reference: np.ndarray, image: np.ndarray) -> dict:
             "mean_ratio": float(b.mean() / max(a.mean(), 1e-30))}
 
 
-def _metrics(s: dict, wall: float) -> dict:
-    out = {"ms": s["ms"], "mb": s.get("mb_extra", 0.0), "ms_cut": s.get("ms_cut", 0.0),
-           "ms_gather": s.get("ms_gather", 0.0), "mb_total": s.get("mb", 0.0),
-           "completed": 1.0 if s.get("completed") else 0.0, "batches": s.get("batches", 0),
-           "tile_halvings": s.get("tile_halvings", 0), "nodes_visited": s.get("nodes_visited", 0.0),
-           "receivers": s.get("receivers", 0), "wall_s": wall}
-    for k in ("pairs_processed", "stream2_items", "refine_passes", "flushes", "ms_refine",
-              "ms_finish", "ms_pyramid", "mb_extra_used", "peak_stack_pairs",
-              "peak_stream2_items", "share_blocks", "share_receivers", "share_block_visits",
-              "ms_share_far", "ms_share_near"):
-        if k in s:
-            out[k] = s[k]
-    if "walk_visited" in s and s.get("receivers"):
-        out["walk_visited_per_receiver"] = s["walk_visited"] / s["receivers"]
+def _metrics(s, wall: float) -> dict:
+    """A record's metrics from a render's RenderStats (app/pbgi/stats.py)."""
+    out = {"ms": s.ms, "mb": s.mb_extra or 0.0, "ms_cut": s.ms_cut, "ms_gather": s.ms_gather,
+           "mb_total": s.mb, "completed": 1.0 if s.completed else 0.0, "batches": s.batches,
+           "tile_halvings": s.tile_halvings or 0, "nodes_visited": s.nodes_visited,
+           "receivers": s.receivers, "wall_s": wall}
+    p, sh = s.pairs, s.share
+    if p is not None:
+        out.update(pairs_processed=p.pairs_processed, stream2_items=p.stream2_items,
+                   refine_passes=p.refine_passes, flushes=p.flushes, ms_refine=p.ms_refine,
+                   ms_finish=p.ms_finish, ms_pyramid=p.ms_pyramid,
+                   mb_extra_used=p.mb_extra_used, peak_stack_pairs=p.peak_stack_pairs,
+                   peak_stream2_items=p.peak_stream2_items)
+    if sh is not None:
+        out.update(share_blocks=sh.share_blocks, share_receivers=sh.share_receivers,
+                   share_block_visits=sh.share_block_visits, ms_share_far=sh.ms_share_far,
+                   ms_share_near=sh.ms_share_near)
+    if p is not None and s.receivers:
+        out["walk_visited_per_receiver"] = p.walk_visited / s.receivers
     return out
 
 

@@ -82,10 +82,12 @@ def run(args) -> int:
     params = RenderParams.from_settings(values)
     res = r.render(camera, materials, params)
     img = res.image
-    if not res.stats["completed"]:
+    st = res.stats
+    if not st.completed:
         log.warning("the render did not complete for every pixel (see stats: %s)",
-                    {k: res.stats.get(k) for k in ("incomplete_receivers", "gather_cut_short",
-                                                     "nonfinite_pixels")})
+                    {"incomplete_receivers": st.incomplete_receivers,
+                     "gather_cut_short": st.gather_cut_short,
+                     "nonfinite_pixels": st.nonfinite_pixels})
     rgba = img.copy()
     if args.background:
         bg = r.background(camera)
@@ -98,7 +100,7 @@ def run(args) -> int:
         from app.io.images import write_png
         from app.render.tonemap import tonemap_to_srgb8
         write_png(args.png, tonemap_to_srgb8(rgba, exposure))
-    stats = dict(res.stats)
+    stats = st.to_dict()                  # app.pbgi.stats.RenderStats, plus the run's inputs
     stats.update({"cloud": str(args.cloud), "points": len(cloud), "object": str(args.object),
                   "triangles": int(mesh.n_faces), "camera": camera.to_dict(),
                   "renderer": r.ctx.info.get("GL_RENDERER"),
@@ -108,7 +110,7 @@ def run(args) -> int:
     if args.stats:
         write_json(args.stats, stats)
     print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}) in "
-          f"{stats['ms']:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
+          f"{st.ms:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0
 
 

@@ -65,7 +65,7 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000, face_size: int
     from app.hdr.pipeline import ExpandParams, run_expansion
     from app.io.formats import object_from_dict, placed_mesh
     from app.pbgi.compare import relit_errors, scaled
-    from app.pbgi.renderer import IMPLEMENTED, Relighter
+    from app.pbgi.renderer import Relighter
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -90,7 +90,7 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000, face_size: int
                    f"LDR {point_err['ldr_rms_overexposed']:.3f} (ground-truth units)")
 
     t = time.perf_counter()
-    mode = "hybrid" if "hybrid" in IMPLEMENTED else "classic"
+    mode = "hybrid"
     mesh = placed_mesh(object_from_dict(room.default_object("sphere"), out, "demo object"))
     clouds = {"expanded": scaled(exp.cloud, scene.alpha), "ldr": scaled(scene.ldr, scene.alpha)}
     relighter = Relighter()

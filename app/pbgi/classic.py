@@ -1,31 +1,31 @@
 """Classic PBGI (paper Section 5.2): one depth-first BSH walk per receiver finds its cut and
 rasterises it into the receiver's micro-buffer (shaders/pbgi_classic.glsl).
 
-A *cut finder* fills the micro-buffers of one batch of receivers; the modes differ only here
-(Mipmapped/Hybrid implement the same ``fill`` and reuse the micro-buffer, the node layout and
-the gather). The walk is split across dispatches with a per-receiver resume index because
-llvmpipe silently ends every loop of an invocation after 65,535 iterations in total; the host
-dispatches until no receiver has work left and reports per receiver whether its walk completed.
+``ClassicCut`` is the reference cut finder (app/pbgi/modebase.py): the other modes reuse the
+micro-buffer, the node layout and the gather and differ only in how they find the same cut (the
+far-field sharing also runs two of these walks, split by SHARE_SPLIT). The walk is split across
+dispatches with a per-receiver resume index because llvmpipe silently ends every loop of an
+invocation after 65,535 iterations in total; the host dispatches until no receiver has work left
+and reports per receiver whether its walk completed.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from app.pbgi.microbuffer import MicroBuffers, entries, omega_micro
+from app.pbgi.microbuffer import entries, omega_micro
+from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
 
 LOOP_LIMIT = 65535            # llvmpipe: loop iterations per invocation, all loops together
 GROUP = 64                    # local_size_x of the shader
 
 
-class ClassicCut:
+class ClassicCut(CutFinder):
     """Depth-first cut finder. Budgets per dispatch and receiver: ``steps`` node visits,
     ``list_cap`` accepted nodes and ``splat_budget`` micro-buffer entry tests, together below
     LOOP_LIMIT (checked). ``stop_factor`` = 4 is Section 5.3's 4 Omega; nodes straddling the
     receiver's horizon are refined down to ``horizon_factor`` x Omega."""
-
-    name = "classic"
 
     def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768, list_cap: int = 256,
                  stop_factor: float = 4.0, horizon_factor: float = 1.0, max_rounds: int = 100000,
@@ -41,10 +41,12 @@ class ClassicCut:
         self.state = None
         self.counter = ctx.buffer(reserve=4)
 
-    @staticmethod
-    def bytes_per_receiver(m: int) -> int:
+    def bytes_per_receiver(self, m: int) -> int:
         """Per-receiver memory besides the micro-buffer: the resume state (uvec4)."""
         return 16
+
+    def reserve_bytes(self, budget_bytes: float) -> int:
+        return 0
 
     def _state(self, count: int):
         need = 16 * count
@@ -55,22 +57,21 @@ class ClassicCut:
         self.state.clear(size=need)      # next node 0 (the root), nothing visited
         return self.state
 
-    def fill(self, mb: MicroBuffers, receivers, first: int, count: int, m: int, nodes,
-             cell_size: float = 1.0, share=None) -> dict:
-        """Fill the micro-buffers (already emptied) of receivers [first, first + count);
-        ``nodes`` is the hierarchy's NodeTextures. ``share``: the per-row (centre, D) buffer of
-        a walk compiled with SHARE_SPLIT (app/pbgi/farfield.py)."""
+    def fill(self, batch: Batch, share=None) -> CutFigures:
+        """Fill the micro-buffers (already emptied) of the batch's receivers. ``share``: the
+        per-row (centre, D) buffer of a walk compiled with SHARE_SPLIT (app/pbgi/farfield.py)."""
+        first, count, m, nodes = batch.first, batch.count, batch.m, batch.nodes
         node_count = nodes.count
         if self.splat_budget < entries(m):
             raise ValueError("splat budget must cover one whole micro-buffer")
         state = self._state(count)
-        receivers.bind_to_storage_buffer(0)
+        batch.receivers.bind_to_storage_buffer(0)
         state.bind_to_storage_buffer(1)
         self.counter.bind_to_storage_buffer(2)
         if share is not None:
             share.bind_to_storage_buffer(3)
         nodes.use()
-        mb.bind()
+        batch.microbuffers.bind()
         prog = self.prog
         prog["u_first"] = first
         prog["u_count"] = count
@@ -81,7 +82,7 @@ class ClassicCut:
         prog["u_steps"] = self.steps
         prog["u_splat_budget"] = self.splat_budget
         if "u_inv_cell_area" in prog:
-            prog["u_inv_cell_area"] = 1.0 / max(cell_size, 1e-9) ** 2
+            prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
         groups = (count + GROUP - 1) // GROUP
         rounds, remaining = 0, count
@@ -93,12 +94,24 @@ class ClassicCut:
             rounds += 1
         st = np.frombuffer(state.read(size=16 * count), np.uint32).reshape(count, 4)
         done = st[:, 0] >= node_count
-        return {"rounds": rounds, "visited": st[:, 1].astype(np.int64), "done": done,
-                "cut_short": int(((st[:, 2] & 2) != 0).sum()), "tests": st[:, 3].astype(np.int64),
-                "bytes": self.state.size}
+        return CutFigures(visited=st[:, 1].astype(np.int64), done=done,
+                          tests=st[:, 3].astype(np.int64), rounds=rounds,
+                          cut_short=int(((st[:, 2] & 2) != 0).sum()), nbytes=self.state.size)
 
     def release(self) -> None:
         for b in (self.state, self.counter):
             if b is not None:
                 b.release()
         self.state = self.counter = None
+
+
+class ClassicMode(MicroBufferMode):
+    """Classic PBGI: every receiver walks the whole tree."""
+
+    name = "classic"
+
+    def __init__(self, ctx, params: RenderParams):
+        super().__init__(ctx, params, ClassicCut(ctx))
+
+    def fits(self, params: RenderParams) -> bool:
+        return True                   # no parameter is fixed at construction

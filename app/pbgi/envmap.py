@@ -2,14 +2,20 @@
 object's centre, then used as *distant* light by the same gather and BRDF as PBGI.
 
 This is the standard look-dev approach: it ignores parallax (every receiver sees the room from
-the centre) and so misplaces near walls and lights, which is what PBGI fixes.
+the centre) and so misplaces near walls and lights, which is what PBGI fixes. ``EnvmapMode`` is
+the render mode (app/pbgi/modebase.py): no micro-buffers, one gather of all receivers from the
+cube map the Relighter keeps per cloud, asset and face size.
 """
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from app.camera import cube_cameras
+from app.pbgi.modebase import Frame, RenderMode, RenderParams
+from app.pbgi.stats import RenderStats
 from app.render.splat import SplatRenderer
 
 DEFAULT_FACE = 128
@@ -54,3 +60,26 @@ class EnvironmentMap:
 
     def release(self) -> None:
         self.texture.release()
+
+
+class EnvmapMode(RenderMode):
+    """The environment-map baseline as a render mode."""
+
+    name = "envmap"
+
+    def fits(self, params: RenderParams) -> bool:
+        return True                   # the face size is per render (the Relighter's cube map)
+
+    def render(self, frame: Frame, stats: RenderStats) -> int:
+        env = frame.environment(frame.params.envmap_face)
+        self.ctx.finish()
+        tg = time.perf_counter()
+        frame.gather.run(frame.receivers, frame.materials, frame.output, 0, frame.count, frame.m,
+                         frame.camera_rel, env=env)
+        self.ctx.finish()
+        stats.ms_gather = (time.perf_counter() - tg) * 1e3
+        stats.envmap_face = env.face_size
+        return env.nbytes
+
+    def release(self) -> None:
+        pass                          # the cube map is the Relighter's

@@ -2,9 +2,9 @@
 
 Why: on llvmpipe the paper's Hybrid speed-up (coherent breadth-first refinement on thousands of
 GPU threads) does not exist - all three modes reach the same cut, and finding and rasterising
-that cut per receiver is 97% of a frame (measured; the walk alone is 13-18% of it). The only way
-to do less per receiver is to share the *result* of the walk between neighbours, and the part of
-the scene where that is exact up to a tolerance is the far field:
+that cut per receiver is nearly all of a frame. The only way to do less per receiver is to share
+the *result* of the walk between neighbours, and the part of the scene where that is exact up to
+a tolerance is the far field:
 
 * receivers are grouped into aligned square blocks of the pixel grid (2x2 .. 2^L x 2^L, L =
   ``max_level``; in the renderer's Z-order a block is a run of consecutive receivers). A block is
@@ -33,7 +33,7 @@ max_cone^2 / 4 of the cosine-weighted hemisphere, 0.25% at 0.1 rad); a far node 
 near one for an entry has its depth measured from the centre. The quantisation of a bright light
 into micro-pixels is then the same over a block instead of varying pixel to pixel - not larger:
 against Classic at M = 32, Hybrid at M = 16 is as close as Classic at M = 16
-(tests/test_pbgi_farfield.py). eps = 0 turns the sharing off (app/pbgi/hybrid.py).
+(tests/pbgi/test_pbgi_farfield.py). eps = 0 turns the sharing off (app/pbgi/hybrid.py).
 
 Memory: the block micro-buffers (one row of entries(M) texels per block) are most of the extra
 memory; blocks are walked in chunks of at most MAX_CHUNK (fewer when the budget is small), so it
@@ -48,6 +48,8 @@ import numpy as np
 
 from app.pbgi.classic import ClassicCut
 from app.pbgi.microbuffer import ENTRY_BYTES, MicroBuffers, entries
+from app.pbgi.modebase import Batch, CutFigures, CutFinder
+from app.pbgi.stats import ShareFigures
 from app.render.programs import load_compute
 
 NONE = 0xFFFFFFFF
@@ -133,11 +135,10 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
             "level": level, "size": cnt, "first": first}
 
 
-class FarFieldShare:
-    """Fills a batch's micro-buffers with far-field sharing; ``fill`` has the cut-finder
-    interface (app/pbgi/renderer.py) with width= and budget_bytes= (needs_tile)."""
+class FarFieldShare(CutFinder):
+    """The cut finder (app/pbgi/modebase.py) that fills a batch's micro-buffers with far-field
+    sharing; it reads the batch's tile width and budget."""
 
-    needs_tile = True
     clears_microbuffers = True        # fill writes every entry: the renderer need not empty them
 
     def __init__(self, ctx, tolerance: float = DEFAULT_TOLERANCE,
@@ -156,11 +157,13 @@ class FarFieldShare:
         self._bufs = []
         self.frames = None            # per batch receiver: its micro-buffer's frame normal
 
-    @staticmethod
-    def bytes_per_receiver(m: int) -> int:
+    def bytes_per_receiver(self, m: int) -> int:
         """What a receiver costs besides its micro-buffer, plus a quarter of a block's (blocks
         hold >= 4 receivers)."""
         return RECEIVER_BYTES + (entries(m) * ENTRY_BYTES + BLOCK_BYTES) // MIN_BLOCK
+
+    def reserve_bytes(self, budget_bytes: float) -> int:
+        return 0                      # the block buffers are chunked within the batch's share
 
     def _buffer(self, data: np.ndarray):
         b = self.ctx.buffer(np.ascontiguousarray(data).tobytes())
@@ -183,9 +186,12 @@ class FarFieldShare:
         pr.run((r1 - r0 + GROUP - 1) // GROUP)
         self.ctx.memory_barrier()
 
-    def fill(self, mb: MicroBuffers, receivers, first: int, count: int, m: int, nodes,
-             cell_size: float = 1.0, width: int = 1, budget_bytes: float = 1 << 30) -> dict:
+    def fill(self, batch: Batch) -> CutFigures:
         ctx = self.ctx
+        mb, receivers, first, count, m = (batch.microbuffers, batch.receivers, batch.first,
+                                          batch.count, batch.m)
+        nodes, cell_size, width, budget_bytes = (batch.nodes, batch.cell_size, batch.width,
+                                                 batch.budget_bytes)
         t0 = time.perf_counter()
         rec = np.frombuffer(receivers.read(size=64 * count, offset=64 * first),
                             np.float32).reshape(count, 16)
@@ -220,11 +226,11 @@ class FarFieldShare:
                     chunks += 1
                     self.block_mb.prepare(m, cap, b1 - b0)
                     ball_buf = self._buffer(balls[b0:b1])
-                    res = self.far.fill(self.block_mb, pseudo_buf, b0, b1 - b0, m, nodes,
-                                        cell_size, share=ball_buf)
-                    far_visited[b0:b1] = res["visited"]
-                    far_done[b0:b1] = res["done"]
-                    rounds += res["rounds"]
+                    res = self.far.fill(Batch(self.block_mb, pseudo_buf, b0, b1 - b0, m, nodes,
+                                              cell_size), share=ball_buf)
+                    far_visited[b0:b1] = res.visited
+                    far_done[b0:b1] = res.done
+                    rounds += res.rounds
                     # copy the chunk's block buffers into its receivers' micro-buffers
                     self._merge(mb, block_buf, int(blocks["first"][b0]), int(ends[b1 - 1]),
                                 b0, b1)
@@ -237,7 +243,7 @@ class FarFieldShare:
             near_balls[has, 0, 0:3] = blocks["centre"][block_of[has]]
             near_balls[has, 0, 3] = blocks["ball"][block_of[has]]
             near_balls[has, 1, 0:3] = blocks["axis"][block_of[has]]
-            res = self.near.fill(mb, receivers, first, count, m, nodes, cell_size,
+            res = self.near.fill(Batch(mb, receivers, first, count, m, nodes, cell_size),
                                  share=self._buffer(near_balls))
             if self.frames is not None:
                 self.frames.release()
@@ -247,19 +253,20 @@ class FarFieldShare:
             for b in self._bufs:
                 b.release()
             self._bufs = []
-        done = res["done"].copy()
+        done = res.done.copy()
         if nb:
             done[has] &= far_done[block_of[has]]
         bsize = blocks["size"]
-        return {"rounds": rounds + res["rounds"], "visited": res["visited"], "done": done,
-                "cut_short": res.get("cut_short", 0), "tests": res.get("tests"),
-                "bytes": peak_bytes + RECEIVER_BYTES * count + BLOCK_BYTES * nb,
-                "frames": self.frames,
-                "extra": {"share_blocks": nb, "share_chunks": chunks, "share_receivers": int(has.sum()),
-                          "share_block_visits": int(far_visited[:nb].sum()),
-                          "ms_share_blocks": (t1 - t0) * 1e3, "ms_share_far": (t2 - t1) * 1e3,
-                          "ms_share_near": (t3 - t2) * 1e3},
-                "peaks": {"share_block_max": int(bsize.max()) if nb else 0}}
+        return CutFigures(
+            visited=res.visited, done=done, tests=res.tests, rounds=rounds + res.rounds,
+            cut_short=res.cut_short,
+            nbytes=peak_bytes + RECEIVER_BYTES * count + BLOCK_BYTES * nb, frames=self.frames,
+            share=ShareFigures(
+                share_blocks=nb, share_chunks=chunks, share_receivers=int(has.sum()),
+                share_block_visits=int(far_visited[:nb].sum()),
+                ms_share_blocks=(t1 - t0) * 1e3, ms_share_far=(t2 - t1) * 1e3,
+                ms_share_near=(t3 - t2) * 1e3,
+                share_block_max=int(bsize.max()) if nb else 0))
 
     def release(self) -> None:
         for c in (self.far, self.near):

@@ -3,10 +3,10 @@ refining (node, pixel) pairs over a G-buffer pyramid (app/pbgi/gmip.py), then fi
 receiver. The exact Hybrid PBGI (app/pbgi/hybrid.py, parallax tolerance 0) is the same engine
 with Omega_tr > 0; the default Hybrid shares the far field instead (app/pbgi/farfield.py).
 
-Same interface as app.pbgi.classic.ClassicCut - ``fill`` fills the micro-buffers of one batch of
-receivers - extended with keyword arguments (the renderer passes them to cut finders that set
-``needs_tile = True``): ``width`` = the tile width (receivers carry row-major pixel indices; the
-pyramid needs x, y) and ``budget_bytes`` = the memory budget the pair buffers are sized from.
+``PairRefiner`` is a cut finder (app/pbgi/modebase.py) like app.pbgi.classic.ClassicCut: ``fill``
+fills the micro-buffers of one batch of receivers. It also reads the batch's ``width`` (the tile
+width: receivers carry row-major pixel indices, the pyramid needs x, y) and ``budget_bytes`` (the
+memory budget the pair buffers are sized from).
 
 Pipeline per batch:
 
@@ -30,12 +30,12 @@ smaller. Running short never fails, it costs passes (fewer
 pairs per pass, or children disabled: pairs go to the second stream) or flushes. GL refusing an
 allocation raises AllocationError, which the renderer answers by halving the batch.
 
-Why compute passes, not a geometry shader with transform feedback (the paper's design): the same
-refinement step measured both ways on this machine (llvmpipe, 2 cores; hybrid.py's
-refine_backend_figures, every pair emitting two): 68-90 ns per pair through a vertex + geometry
-shader into transform feedback, 22-34 ns per pair as a compute dispatch with an atomic append
-(16k-1M pairs). The compute version also needs no per-pass query read-back: its next dispatch
-size is computed on the GPU (indirect dispatch).
+Why compute passes, not a geometry shader with transform feedback (the paper's design): on
+llvmpipe the same refinement step (read a pair, test it, emit its children) runs several times
+faster as a compute dispatch with an atomic append than through a vertex + geometry shader into
+transform feedback (tests/pbgi/test_refine_backends.py runs both; time them there), and the
+compute version needs no per-pass query read-back: its next dispatch size is computed on the GPU
+(indirect dispatch).
 
 Every pass and the finishing walk keep per-invocation work below llvmpipe's 65,535 loop
 iterations (the refinement has no loop over more than 4 items; the walk has Classic's budgets),
@@ -49,7 +49,10 @@ import time
 import numpy as np
 
 from app.pbgi.gmip import PIXEL_BYTES, WIDTH, MipPyramid, image_rows, to_rows, z_order
-from app.pbgi.microbuffer import MicroBuffers, entries, omega_micro
+from app.pbgi.microbuffer import entries, omega_micro
+from app.pbgi.modebase import (AllocationError, Batch, CutFigures, CutFinder, MicroBufferMode,
+                               RenderParams)
+from app.pbgi.stats import PairFigures
 from app.render.programs import load_compute
 
 LOOP_LIMIT = 65535
@@ -67,10 +70,6 @@ C_KMAX, C_CAP, C_S2_CAP, C_DISABLED_PASSES = 22, 23, 24, 25
 
 MIN_STACK_PAIRS = 4096
 MIN_ITEMS = 4096
-
-
-class AllocationError(RuntimeError):
-    """GL refused a buffer (out of memory): the caller halves its tile and retries."""
 
 
 def gl_alloc(ctx, kind: str, *args):
@@ -94,7 +93,7 @@ def _set(prog, **uniforms) -> None:
             prog[k] = v
 
 
-class PairRefiner:
+class PairRefiner(CutFinder):
     """The (node, pixel) pair engine; ``omega_tr_factor`` = 0 is Mipmapped, > 0 Hybrid.
 
     ``steps``, ``splat_budget`` and ``list_cap`` are the finishing walk's per-dispatch budgets
@@ -103,9 +102,6 @@ class PairRefiner:
     (radians) is how far a coarse cull must clear its test (float32 slack); ``stream_share`` of
     the budget (at most ``max_stream_bytes``) caps each stream; ``alloc(kind, *args)`` makes GL
     objects (tests inject refusals); ``defines`` go to every shader (profiling)."""
-
-    name = "mipmapped"
-    needs_tile = True
 
     def __init__(self, ctx, omega_tr_factor: float = 0.0, steps: int = 16384,
                  splat_budget: int = 32768, list_cap: int = 256, stop_factor: float = 4.0,
@@ -183,27 +179,26 @@ class PairRefiner:
         return (2 * self.stream_bytes(budget_bytes) + (PIXEL_BYTES + 4) * WIDTH
                 + 4 * COUNTER_WORDS + 16)
 
-    @staticmethod
-    def bytes_per_receiver(m: int) -> int:
+    def bytes_per_receiver(self, m: int) -> int:
         """Per-receiver memory besides its micro-buffer: state, pyramid (<= 4/3 pixels per
         receiver, 48 bytes each) and list heads."""
         return STATE_BYTES + 2 * (48 + 4)
 
     # -- one batch -----------------------------------------------------------------------------
-    def fill(self, mb: MicroBuffers, receivers, first: int, count: int, m: int, nodes,
-             cell_size: float = 1.0, *, width: int, budget_bytes: float = 1024 * 2**20) -> dict:
-        """Fill the micro-buffers (already emptied) of receivers [first, first + count);
-        ``nodes`` is the hierarchy's NodeTextures, ``width`` the tile width."""
+    def fill(self, batch: Batch) -> CutFigures:
+        """Fill the micro-buffers (already emptied) of the batch's receivers."""
+        receivers, first, count, m = batch.receivers, batch.first, batch.count, batch.m
+        nodes, mb, cell_size = batch.nodes, batch.microbuffers, batch.cell_size
         if self.splat_budget < entries(m):
             raise ValueError("splat budget must cover one whole micro-buffer")
         ctx = self.ctx
         t_start = time.perf_counter()
         raw = np.frombuffer(receivers.read(size=64 * count, offset=64 * first), dtype=np.uint32)
         pixels = raw.reshape(count, 16)[:, 3]
-        topo = self.pyramid.build(receivers, first, z_order(pixels, int(width)))
+        topo = self.pyramid.build(receivers, first, z_order(pixels, int(batch.width)))
         n_pix = topo.n_pixels
 
-        cap, s2_cap = self.capacities(count, budget_bytes)
+        cap, s2_cap = self.capacities(count, batch.budget_bytes)
         kmax = max(cap // 5, 1)
         pairs = self._image("pairs", cap, 2)
         items = self._image("items", s2_cap, 4)
@@ -292,30 +287,22 @@ class PairRefiner:
         share = processed / max(count, 1)
         peak_used = (int(c[C_PEAK_STACK]) * PAIR_BYTES + peak_s2 * ITEM_BYTES
                      + (PIXEL_BYTES + 4) * n_pix + STATE_BYTES * count)
-        return {
-            "rounds": int(c[C_PASSES]) + finish_rounds,
-            "visited": walk + int(round(share)),
-            "done": done,
-            "cut_short": int(((st[:, 5] & 2) != 0).sum()),
-            "tests": st[:, 6].astype(np.int64),
-            "bytes": self.nbytes,
-            "extra": {              # summed over the batches of a render
-                "refine_passes": int(c[C_PASSES]), "finish_rounds": finish_rounds,
-                "flushes": flushes, "pairs_processed": processed,
-                "node_refines": int(c[C_NODE_REFINES]), "pixel_splits": int(c[C_PIXEL_SPLITS]),
-                "culled_shared": int(c[C_CULLED]), "stream2_items": int(c[C_TO_S2]),
-                "decided_shared": int(c[C_ACCEPTED]), "pushed_back": int(c[C_PUSHED_BACK]),
-                "disabled_passes": int(c[C_DISABLED_PASSES]), "pyramid_pixels": n_pix,
-                "walk_visited": int(walk.sum()),
-                "ms_pyramid": (t_pyr - t_start) * 1e3, "ms_finish": t_fin * 1e3,
-                "ms_refine": (t_end - t_pyr - t_fin) * 1e3,
-            },
-            "peaks": {              # the largest batch's
-                "peak_stack_pairs": int(c[C_PEAK_STACK]), "peak_stream2_items": peak_s2,
-                "stack_capacity": cap, "stream2_capacity": s2_cap,
-                "pyramid_levels": topo.levels, "mb_extra_used": peak_used / 2**20,
-            },
-        }
+        return CutFigures(
+            visited=walk + int(round(share)), done=done, tests=st[:, 6].astype(np.int64),
+            rounds=int(c[C_PASSES]) + finish_rounds,
+            cut_short=int(((st[:, 5] & 2) != 0).sum()), nbytes=self.nbytes,
+            pairs=PairFigures(
+                refine_passes=int(c[C_PASSES]), finish_rounds=finish_rounds, flushes=flushes,
+                pairs_processed=processed, node_refines=int(c[C_NODE_REFINES]),
+                pixel_splits=int(c[C_PIXEL_SPLITS]), culled_shared=int(c[C_CULLED]),
+                stream2_items=int(c[C_TO_S2]), decided_shared=int(c[C_ACCEPTED]),
+                pushed_back=int(c[C_PUSHED_BACK]), disabled_passes=int(c[C_DISABLED_PASSES]),
+                pyramid_pixels=n_pix, walk_visited=int(walk.sum()),
+                ms_pyramid=(t_pyr - t_start) * 1e3, ms_finish=t_fin * 1e3,
+                ms_refine=(t_end - t_pyr - t_fin) * 1e3,
+                peak_stack_pairs=int(c[C_PEAK_STACK]), peak_stream2_items=peak_s2,
+                stack_capacity=cap, stream2_capacity=s2_cap, pyramid_levels=topo.levels,
+                mb_extra_used=peak_used / 2**20))
 
     def _finish(self, state, remaining, count: int, topo) -> tuple[int, bool]:
         """Run the finishing walk until every receiver has walked all its lists."""
@@ -349,10 +336,19 @@ class PairRefiner:
 
 
 class MipmappedCut(PairRefiner):
-    """Mipmapped PBGI: every pair is refined in parallel down to the cut."""
+    """Mipmapped PBGI's cut finder: every pair is refined in parallel down to the cut."""
+
+    def __init__(self, ctx, **kw):
+        super().__init__(ctx, omega_tr_factor=0.0, **kw)
+
+
+class MipmappedMode(MicroBufferMode):
+    """Mipmapped PBGI: walks shared through the G-buffer pyramid."""
 
     name = "mipmapped"
 
-    def __init__(self, ctx, **kw):
-        kw.pop("omega_tr_factor", None)
-        super().__init__(ctx, omega_tr_factor=0.0, **kw)
+    def __init__(self, ctx, params: RenderParams):
+        super().__init__(ctx, params, MipmappedCut(ctx))
+
+    def fits(self, params: RenderParams) -> bool:
+        return True                   # no parameter is fixed at construction

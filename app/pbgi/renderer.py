@@ -6,9 +6,13 @@
     res = r.render(camera, materials, RenderParams(mode="classic", microbuffer=24))
     res.image  # (h, w, 4) float32 linear radiance, alpha 1 on object pixels; res.stats
 
-A render is: G-buffer -> receivers (object pixels) -> per batch of receivers sized from the
-memory budget: find the cut into micro-buffers (the mode) -> gather with the Disney BRDF (shared).
-Modes share the node layout, the micro-buffer and the gather; they differ only in the cut finder.
+A render is: G-buffer -> receivers (object pixels, in Z-order) -> the mode lights them into the
+output (``RenderMode.render``, app/pbgi/modebase.py) -> image and ``RenderStats``. The modes are
+a closed list (app/pbgi/modes.py); the three PBGI modes share the node layout, the micro-buffer,
+the batching and the gather and differ only in their cut finder; the environment map is the same
+gather lit by a cube map. The Relighter holds what they share: the BSH and its node textures,
+the G-buffer, the micro-buffers (and which cut they hold), the gather, the cube map.
+
 Material edits change only the material table (and the G-buffer's factors): when the previous
 render's micro-buffers are still valid (same cloud, asset, camera, tile, size, mode and normal
 maps, all receivers in one batch), only the G-buffer and the gather run again.
@@ -17,68 +21,26 @@ maps, all receivers in one batch), only the G-buffer and the gather run again.
 from __future__ import annotations
 
 import hashlib
-import logging
 import time
-import sys
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from app.errors import ScanlightError
-from app.params import RENDER_KEYS, param_record
-from app.pbgi.microbuffer import (MAX_SIZE, MIN_SIZE, MicroBuffers, batch_size,
-                                  bytes_per_receiver, entries)
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
+from app.pbgi.microbuffer import MicroBuffers, entries
+from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
+from app.pbgi.modes import create_mode
 from app.pbgi.nodetex import NodeTextures
+from app.pbgi.stats import MB, RenderStats
 
-log = logging.getLogger(__name__)
-
-MODES = ("classic", "mipmapped", "hybrid", "envmap")
-# Cut finders of the PBGI modes: mode -> (module, class, {constructor keyword: RenderParams
-# field}). The protocol (app.pbgi.classic.ClassicCut is the reference):
-#   fill(mb, receivers, first, count, m, nodes, cell_size) -> dict with per-receiver "visited"
-#       and "done" arrays; optional "rounds", "cut_short", "tests" (per receiver) and "extra"
-#       (a dict of numbers, summed over batches into the stats);
-#   needs_tile = True: fill also gets width= (the tile width) and budget_bytes=;
-#   bytes_per_receiver(m): per-receiver memory besides the micro-buffer (batch sizing);
-#   reserve_bytes(budget): memory taken whatever the batch size (subtracted from the budget);
-#   clears_microbuffers = True: fill writes every entry of its rows, so they are not emptied first;
-#   GL refusing memory: fill raises its module's AllocationError (or MemoryError); the
-#       renderer halves the batch and retries (stats "tile_halvings").
-CUT_FINDERS = {
-    "classic": ("app.pbgi.classic", "ClassicCut", {}),
-    "mipmapped": ("app.pbgi.mipmapped", "MipmappedCut", {}),
-    "hybrid": ("app.pbgi.hybrid", "HybridCut", {"omega_tr_factor": "omega_tr_factor",
-                                                "parallax_tolerance": "parallax_tolerance"}),
-}
-
-
-def _available(module: str) -> bool:
-    import importlib.util
-    try:
-        return importlib.util.find_spec(module) is not None
-    except (ImportError, ValueError):
-        return False
-
-
-IMPLEMENTED = tuple(m for m, (mod, _, _) in CUT_FINDERS.items() if _available(mod)) + ("envmap",)
-
-
-MB = 1024.0 * 1024.0
-
-
-@param_record(*RENDER_KEYS)
-class RenderParams:
-    """What one render takes: the ``pbgi.*`` rows of app/params.py named in RENDER_KEYS (mode,
-    microbuffer, omega_tr_factor, parallax_tolerance, memory_budget_mb, envmap_face), with the
-    table's defaults and ranges. ``validated()`` returns a checked copy or raises ScanlightError.
-    """
+__all__ = ["Relighter", "RenderParams", "RenderResult", "RenderStats", "recolor"]
 
 
 @dataclass
 class RenderResult:
-    image: np.ndarray
-    stats: dict = field(default_factory=dict)
+    image: np.ndarray                 # (h, w, 4) float32 linear radiance, alpha = coverage
+    stats: RenderStats
 
 
 def _fingerprint(*arrays) -> str:
@@ -122,8 +84,9 @@ class Relighter:
         self.ctx = ctx or get_context()
         self.gbuffer = GBuffer(self.ctx)
         self.gather = Gather(self.ctx)
-        self.cut_finders = {}
+        self.modes: dict[str, RenderMode] = {}      # one per name, see mode_for
         self.microbuffers = MicroBuffers(self.ctx)
+        self._held = HeldCut(self.microbuffers)
         self.cloud = None
         self.hierarchy = None
         self.nodes_buf = None
@@ -135,9 +98,6 @@ class Relighter:
         self._splat = None
         self._env = None
         self._env_key = None
-        self._mb_key = None
-        self._mb_stats = {}
-        self._mb_frames = None
         self.last_receivers = None
 
     # -- inputs -----------------------------------------------------------------------------
@@ -155,7 +115,6 @@ class Relighter:
                 hierarchy = cached[1]
             elif cached is not None:
                 h = cached[1]
-                from dataclasses import replace
                 hierarchy = replace(h, nodes=recolor(h, cloud.colors))
             else:
                 hierarchy = load_or_build(cloud)   # cached beside the cloud's file, if any
@@ -221,22 +180,19 @@ class Relighter:
         return self._env
 
     # -- render -----------------------------------------------------------------------------
-    def _cut(self, mode: str, params: RenderParams):
-        return self.cut_finder(replace(params, mode=mode))
-
-    def cut_finder(self, params: RenderParams):
-        """The cut finder of a PBGI mode (created once; Hybrid's again when its factor changes)."""
-        import importlib
-        module, cls, kwargs = CUT_FINDERS[params.mode]
-        kw = {k: getattr(params, v) for k, v in kwargs.items()}
-        held = self.cut_finders.get(params.mode)
-        if held is None or getattr(held, "_scanlight_kw", kw) != kw:
-            if held is not None and hasattr(held, "release"):
+    def mode_for(self, params: RenderParams) -> RenderMode:
+        """The mode object ``params.mode`` renders with: created once, again when a parameter
+        it fixed at construction changed (``RenderMode.fits``)."""
+        held = self.modes.get(params.mode)
+        if held is None or not held.fits(params):
+            if held is not None:
                 held.release()
-            held = getattr(importlib.import_module(module), cls)(self.ctx, **kw)
-            held._scanlight_kw = kw
-            self.cut_finders[params.mode] = held
+            held = self.modes[params.mode] = create_mode(params.mode, self.ctx, params)
         return held
+
+    def forget_microbuffers(self) -> None:
+        """The next render finds its cut again even if the micro-buffers hold it (timings)."""
+        self._held.key = None
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
                tile=None) -> RenderResult:
@@ -269,15 +225,14 @@ class Relighter:
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         n = len(rec)
         t1 = time.perf_counter()
-        stats = {"mode": params.mode, "microbuffer": m, "width": w, "height": h,
-                 "tile": list(tile), "receivers": n, "nodes": self.node_count,
-                 "bsh_mb": (self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
-                 "batches": 0, "rounds": 0, "nodes_visited": 0.0, "completed": True,
-                 "reused_microbuffers": False, "ms_gbuffer": (t1 - t0) * 1e3, "ms_cut": 0.0,
-                 "ms_gather": 0.0, "micropixels": n * m * m, "entries": n * entries(m)}
+        stats = RenderStats(mode=params.mode, microbuffer=m, width=w, height=h, tile=tile,
+                            receivers=n, nodes=self.node_count,
+                            bsh_mb=(self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
+                            micropixels=n * m * m, entries=n * entries(m),
+                            ms_gbuffer=(t1 - t0) * 1e3)
         image = np.zeros((h, w, 4), dtype=np.float32)
         if n == 0:
-            stats.update(ms=(t1 - t0) * 1e3, mb=gb["bytes"] / MB)
+            stats.ms, stats.mb = (t1 - t0) * 1e3, gb["bytes"] / MB
             return RenderResult(image, stats)
 
         bufs = {"receivers": ctx.buffer(rec.tobytes()),
@@ -285,17 +240,20 @@ class Relighter:
                 "output": ctx.buffer(reserve=16 * w * h)}
         bufs["output"].clear()
         extra = sum(b.size for b in bufs.values())
-        cam_rel = camera.position - self.origin
+        # everything the cut depends on: the micro-buffers hold this render's cut if it matches
+        cut_key = (self._cloud_version, self._asset_version, params.mode, m, tile,
+                   params.omega_tr_factor, params.parallax_tolerance,
+                   tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
+                   tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n,
+                   tuple(id(mt.normal_texture) for mt in materials))
         try:
-            if params.mode == "envmap":
-                extra += self._gather_envmap(params, bufs, n, m, cam_rel, stats)
-            else:
-                key = (self._cloud_version, self._asset_version, params.mode, m, tile,
-                       params.omega_tr_factor, params.parallax_tolerance,
-                       tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
-                       tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n,
-                       tuple(id(mt.normal_texture) for mt in materials))
-                extra += self._cut_and_gather(params, bufs, n, m, cam_rel, key, tile, stats)
+            frame = Frame(params=params, receivers=bufs["receivers"],
+                          materials=bufs["materials"], output=bufs["output"], count=n,
+                          tile=tile, camera_rel=camera.position - self.origin,
+                          nodes=self.node_tex, cell_size=self.hierarchy.cell_size,
+                          gather=self.gather, microbuffers=self._held, cut_key=cut_key,
+                          environment=self.environment)
+            extra += self.mode_for(params).render(frame, stats)
             t2 = time.perf_counter()
             out = np.frombuffer(bufs["output"].read(), dtype=np.float32).reshape(h, w, 4)
         finally:
@@ -304,117 +262,21 @@ class Relighter:
         cover = gb["coverage"]
         image[..., :3] = out[..., :3]
         image[..., 3] = cover.astype(np.float32)
-        gather_short = int((out[..., 3][cover] < 0).sum())
         bad = ~np.isfinite(image[..., :3])
         if bad.any():
             image[..., :3][bad] = 0.0
-        stats["nonfinite_pixels"] = int(bad.any(axis=-1).sum())
-        stats["gather_cut_short"] = gather_short
-        stats["completed"] = (stats.get("incomplete_receivers", 0) == 0 and gather_short == 0
-                              and stats["nonfinite_pixels"] == 0)
-        stats.update(ms=(t2 - t0) * 1e3, mb=max(extra, gb["bytes"]) / MB)
+        stats.nonfinite_pixels = int(bad.any(axis=-1).sum())
+        stats.gather_cut_short = int((out[..., 3][cover] < 0).sum())
+        stats.completed = (not stats.incomplete_receivers and stats.gather_cut_short == 0
+                           and stats.nonfinite_pixels == 0)
+        stats.ms, stats.mb = (t2 - t0) * 1e3, max(extra, gb["bytes"]) / MB
         return RenderResult(image, stats)
-
-    def _gather_envmap(self, params, bufs, n, m, cam_rel, stats) -> int:
-        env = self.environment(params.envmap_face)
-        self.ctx.finish()
-        tg = time.perf_counter()
-        self.gather.run(bufs["receivers"], bufs["materials"], bufs["output"], 0, n, m, cam_rel,
-                        env=env)
-        self.ctx.finish()
-        stats["ms_gather"] = (time.perf_counter() - tg) * 1e3
-        stats["envmap_face"] = env.face_size
-        return env.nbytes
-
-    def _cut_and_gather(self, params, bufs, n, m, cam_rel, key, tile, stats) -> int:
-        """Per batch of receivers: empty the micro-buffers, find the cut (the mode), gather.
-        Batches are sized from the memory budget; GL refusing memory halves them. Returns the
-        extra GPU bytes (micro-buffers, the cut finder's state and reserve)."""
-        import moderngl
-        ctx = self.ctx
-        cut = self.cut_finder(params)
-        state_per = int(getattr(cut, "bytes_per_receiver", lambda m: 16)(m))
-        budget = params.memory_budget_mb * MB
-        reserve = int(getattr(cut, "reserve_bytes", lambda b: 0)(budget))
-        mb_per = bytes_per_receiver(m)
-        per = batch_size(m, max(budget - reserve, 0.0) * mb_per / (mb_per + state_per),
-                         int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)), n)
-        refused = (MemoryError, moderngl.Error) + tuple(   # the finder's modules' AllocationError
-            {getattr(sys.modules.get(c.__module__), "AllocationError", None)
-             for c in type(cut).__mro__} - {None})
-        reuse = per >= n and self._mb_key == key
-        extra_kw = ({"width": tile[2], "budget_bytes": max(budget - mb_per * per, 0.0)}
-                    if getattr(cut, "needs_tile", False) else {})
-        results, halvings, first = [], 0, 0
-        t_cut = t_gather = 0.0
-        while first < n:
-            count = min(per, n - first)
-            ctx.finish()
-            tc = time.perf_counter()
-            if not reuse:
-                self._mb_key = None
-                try:
-                    # a finder that writes every entry itself needs no emptied buffers
-                    self.microbuffers.prepare(
-                        m, per, 0 if getattr(cut, "clears_microbuffers", False) else count)
-                    res = cut.fill(self.microbuffers, bufs["receivers"], first, count, m,
-                                   self.node_tex, self.hierarchy.cell_size, **extra_kw)
-                except refused as exc:
-                    if per <= 1:
-                        raise ScanlightError(None, f"out of GPU memory even for one receiver "
-                                                   f"({exc})") from None
-                    per, halvings = max(1, per // 2), halvings + 1
-                    self.microbuffers.release()
-                    log.warning("GPU memory refused (%s): batch halved to %d receivers", exc, per)
-                    continue
-                results.append(res)
-                ctx.finish()
-            tg = time.perf_counter()
-            frames = results[-1].get("frames") if results and not reuse else self._mb_frames
-            self.gather.run(bufs["receivers"], bufs["materials"], bufs["output"], first, count,
-                            m, cam_rel, mb=self.microbuffers, nodes=self.node_tex, frames=frames)
-            ctx.finish()
-            t_gather += time.perf_counter() - tg
-            t_cut += tg - tc
-            stats["batches"] += 1
-            first += count
-        if reuse:
-            stats.update(self._mb_stats)
-            stats["reused_microbuffers"] = True
-        else:
-            visited = np.concatenate([r["visited"] for r in results])
-            done = np.concatenate([r["done"] for r in results])
-            self._mb_stats = {"nodes_visited": float(visited.mean()),
-                              "nodes_visited_max": int(visited.max()),
-                              "incomplete_receivers": int((~done).sum()),
-                              "rounds": int(sum(r.get("rounds", 0) for r in results)),
-                              "cut_short": int(sum(r.get("cut_short", 0) for r in results))}
-            if all("tests" in r for r in results):
-                self._mb_stats["splat_tests"] = float(np.concatenate(
-                    [r["tests"] for r in results]).mean())
-            for r in results:                      # mode-specific figures, summed over batches
-                for k, v in r.get("extra", {}).items():
-                    if isinstance(v, (int, float, np.number)) and not isinstance(v, bool):
-                        self._mb_stats[k] = self._mb_stats.get(k, 0) + v
-                for k, v in r.get("peaks", {}).items():   # ... and peaks, the largest batch's
-                    self._mb_stats[k] = max(self._mb_stats.get(k, 0), v)
-            # the cut finder's own memory as allocated (its largest batch; Table 3's "extra")
-            self._mb_stats["mb_extra"] = max(r.get("bytes", 0) for r in results) / MB
-            stats.update(self._mb_stats)
-            self._mb_key = key if per >= n else None
-            self._mb_frames = results[-1].get("frames") if results else None
-        extra = reserve + state_per * per
-        stats.setdefault("mb_extra", extra / MB)
-        stats.update(ms_cut=t_cut * 1e3, ms_gather=t_gather * 1e3, batch_receivers=per,
-                     tile_halvings=halvings, mb_microbuffers=self.microbuffers.nbytes / MB,
-                     mb_extra_bound=extra / MB)
-        return self.microbuffers.nbytes + extra
 
     def release(self) -> None:
         self.gbuffer.release()
         self.microbuffers.release()
-        for c in self.cut_finders.values():
-            c.release()
+        for mode in self.modes.values():
+            mode.release()
         for obj in (self.nodes_buf, self.node_tex, self._splat, self._env):
             if obj is not None:
                 obj.release()

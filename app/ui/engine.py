@@ -25,6 +25,7 @@ import numpy as np
 
 from app.camera import Camera
 from app.errors import ScanlightError
+from app.pbgi.stats import RenderStats
 from app.settings import Session
 from app.ui.navigation import ViewNavigator
 from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect
@@ -87,7 +88,7 @@ class ViewerEngine:
         self.relighter_error: str | None = None
         self._lit_cloud = None
         self.gi = ProgressiveGI(self._render_gi)
-        self.gi_stats: dict = {}
+        self.gi_stats: RenderStats | None = None    # the last gather that had receivers
         self.gi_failed = False
         self.frame_ms: list[float] = []
         self.timings: dict = {}
@@ -388,14 +389,13 @@ class ViewerEngine:
         if img.shape[:2] != (h, w) and img.shape[:2] == (camera.height, camera.width):
             img = img[y:y + h, x:x + w]
         img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
-        stats = dict(res.stats or {})
-        prev = self.gi_stats
+        stats, prev = res.stats, self.gi_stats
         # a tile outside the silhouette gathers nothing: keep showing the last real gather's
         # figures (same mode and micro-buffer) rather than zeros
-        if not (stats.get("receivers", 1) == 0 and prev.get("receivers", 0) > 0
-                and all(prev.get(k) == stats.get(k) for k in ("mode", "microbuffer"))):
+        if not (stats.receivers == 0 and prev is not None and prev.receivers > 0
+                and (prev.mode, prev.microbuffer) == (stats.mode, stats.microbuffer)):
             self.gi_stats = stats
-        if stats.get("completed") is False:
+        if not stats.completed:
             self.error("relighting: a render pass did not complete (GPU loop budget); the image "
                        "may be missing light", "warning")
         return img
@@ -433,12 +433,12 @@ class ViewerEngine:
         self.view.release()
 
     def stats(self) -> dict:
+        """The frame loop's figures (the last gather's are ``gi_stats``)."""
         ft = np.asarray(self.frame_ms[-60:]) if self.frame_ms else np.zeros(1)
         out = {"frame_ms": float(ft.mean()), "frame_ms_max": float(ft.max()),
                "refining": self.gi.refining, "progress": self.gi.progress,
                "preview_scale": self.gi.effective_scale}
         out.update({k: v for k, v in self.timings.items()})
-        out.update({f"gi_{k}": v for k, v in self.gi_stats.items()})
         return out
 
     def capture_preview(self, position, face: int = 64) -> np.ndarray:

@@ -16,7 +16,7 @@ def test_demo_views_render_completely(demo_relighter, view):
     mat = Material(base_color=(0.8, 0.8, 0.8), roughness=0.6)
     res = demo_relighter.render(cam, [mat], RenderParams(microbuffer=16))
     s = res.stats
-    assert s["completed"] and s["receivers"] > 20 and s["nodes_visited"] > 100
+    assert s.completed and s.receivers > 20 and s.nodes_visited > 100
     img = res.image
     assert np.isfinite(img).all()
     lit = img[..., :3][img[..., 3] > 0]

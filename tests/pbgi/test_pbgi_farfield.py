@@ -74,7 +74,7 @@ def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     base = furnace.render(cam, [mat], RenderParams(mode="classic", microbuffer=16))
     res = furnace.render(cam, [mat], RenderParams(mode="hybrid", microbuffer=16))
     s = res.stats
-    assert s["completed"] and s["share_receivers"] > 0.7 * s["receivers"]
+    assert s.completed and s.share.share_receivers > 0.7 * s.receivers
     cover = base.image[..., 3] > 0
     got, want = res.image[..., :3][cover], base.image[..., :3][cover]
     assert np.abs(got / want - 1).max() < 0.03
@@ -106,14 +106,14 @@ def test_sharing_is_as_accurate_as_classic_on_the_demo_room(demo_relighter, view
     fine = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=32))
     base = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=16))
     res = r.render(cam, [mat], RenderParams(mode="hybrid", microbuffer=16))
-    assert res.stats["completed"]
+    assert res.stats.completed
     rel_c, _ = _rel_errors(fine.image, base.image)
     rel_h, ratio = _rel_errors(fine.image, res.image)
     assert abs(ratio - 1) < 0.015
     assert rel_h.mean() < 1.15 * rel_c.mean()
     assert np.percentile(rel_h, 99) < 1.2 * np.percentile(rel_c, 99)
-    assert res.stats["share_receivers"] > 0.5 * res.stats["receivers"]
-    assert res.stats["nodes_visited"] < 0.5 * base.stats["nodes_visited"]
+    assert res.stats.share.share_receivers > 0.5 * res.stats.receivers
+    assert res.stats.nodes_visited < 0.5 * base.stats.nodes_visited
 
 
 def test_block_chunks_bounded_by_the_budget_give_the_same_image(demo_relighter):
@@ -126,24 +126,24 @@ def test_block_chunks_bounded_by_the_budget_give_the_same_image(demo_relighter):
     mat = S.diffuse(0.6)
     p = RenderParams(mode="hybrid", microbuffer=16)
     big = r.render(cam, [mat], p)
-    finder = r.cut_finder(p).engine
+    finder = r.mode_for(p).cut                           # FarFieldShare
     finder.share_fraction = 1e-6
     try:
-        r._mb_key = None
+        r.forget_microbuffers()
         small = r.render(cam, [mat], p)
     finally:
         finder.share_fraction = 0.25
-    assert small.stats["share_chunks"] == small.stats["share_blocks"]   # one block per chunk
-    assert small.stats["share_chunks"] > big.stats["share_chunks"]
+    assert small.stats.share.share_chunks == small.stats.share.share_blocks   # one per chunk
+    assert small.stats.share.share_chunks > big.stats.share.share_chunks
     assert np.array_equal(small.image, big.image)
-    assert small.stats["mb_extra"] < big.stats["mb_extra"]
+    assert small.stats.mb_extra < big.stats.mb_extra
 
 
 def test_parallax_tolerance_is_validated():
     from app.errors import ScanlightError
     for bad in (-0.5, float("nan"), 5.0, True):
         with pytest.raises(ScanlightError):
-            replace(RenderParams(mode="hybrid"), parallax_tolerance=bad).validate()
+            replace(RenderParams(mode="hybrid"), parallax_tolerance=bad).validated()
 
 
 def test_gl_refusing_a_block_buffer_halves_the_batch(demo_relighter, monkeypatch):
@@ -158,7 +158,7 @@ def test_gl_refusing_a_block_buffer_halves_the_batch(demo_relighter, monkeypatch
     mat = S.diffuse(0.6)
     p = RenderParams(mode="hybrid", microbuffer=16)
     base = r.render(cam, [mat], p)
-    blocks = r.cut_finder(p).engine.block_mb
+    blocks = r.mode_for(p).cut.block_mb
     real, calls = blocks.prepare, []
 
     def refuse_once(*args, **kw):
@@ -168,9 +168,9 @@ def test_gl_refusing_a_block_buffer_halves_the_batch(demo_relighter, monkeypatch
         return real(*args, **kw)
 
     monkeypatch.setattr(blocks, "prepare", refuse_once)
-    r._mb_key = None
+    r.forget_microbuffers()
     res = r.render(cam, [mat], p)
-    assert res.stats["tile_halvings"] == 1 and res.stats["completed"]
-    assert res.stats["batches"] >= 2
+    assert res.stats.tile_halvings == 1 and res.stats.completed
+    assert res.stats.batches >= 2
     rel, ratio = _rel_errors(base.image, res.image)
     assert abs(ratio - 1) < 0.01 and rel.mean() < 0.03

@@ -162,17 +162,20 @@ def test_sliced_walk_fills_the_same_microbuffers(room):
     m = 16
     mat = S.diffuse()
     res = room.render(CAM, [mat], RenderParams(microbuffer=m))
-    full = room.microbuffers.read(res.stats["receivers"]).copy()
-    assert res.stats["completed"] and res.stats["rounds"] <= 3
-    room.cut_finders["classic"] = ClassicCut(room.ctx, steps=37, splat_budget=entries(m), list_cap=4)
+    full = room.microbuffers.read(res.stats.receivers).copy()
+    assert res.stats.completed and res.stats.rounds <= 3
+    mode = room.mode_for(RenderParams(microbuffer=m))
+    default, mode.cut = mode.cut, ClassicCut(room.ctx, steps=37, splat_budget=entries(m),
+                                             list_cap=4)
     try:
-        room._mb_key = None
+        room.forget_microbuffers()
         res2 = room.render(CAM, [mat], RenderParams(microbuffer=m))
-        sliced = room.microbuffers.read(res2.stats["receivers"])
+        sliced = room.microbuffers.read(res2.stats.receivers)
     finally:
-        room.cut_finders["classic"] = ClassicCut(room.ctx)
-        room._mb_key = None
-    assert res2.stats["rounds"] > 20 and res2.stats["completed"]
+        mode.cut.release()
+        mode.cut = default
+        room.forget_microbuffers()
+    assert res2.stats.rounds > 20 and res2.stats.completed
     assert np.array_equal(full, sliced)
     assert np.array_equal(res.image, res2.image)
 
@@ -183,7 +186,7 @@ def test_microbuffer_entries_are_visible_nodes(room):
     room leaves (almost) no micro-pixel empty."""
     m = 16
     res = room.render(CAM, [S.diffuse()], RenderParams(microbuffer=m))
-    n = res.stats["receivers"]
+    n = res.stats.receivers
     mb = room.microbuffers.read(n)
     rec = room.last_receivers                      # in micro-buffer row order
     nodes = room.hierarchy.decoded()

@@ -10,9 +10,10 @@ import pytest
 
 from tests.support import scenes as S
 from app.pbgi.gmip import MipPyramid, build_topology, morton2, reference_pyramid, z_order
-from app.pbgi.hybrid import HybridCut, refine_backend_figures
 from app.pbgi.microbuffer import MicroBuffers
-from app.pbgi.mipmapped import AllocationError, MipmappedCut, PairRefiner
+from app.pbgi.mipmapped import MipmappedCut, PairRefiner
+from app.pbgi.modebase import AllocationError, Batch
+from app.pbgi.modes import create_mode
 from app.pbgi.reference import reference_render
 from app.pbgi.renderer import Relighter, RenderParams
 
@@ -27,14 +28,14 @@ def _receivers(r, cam):
 
 
 def _fill(r, finder, rec, m, width, **kw):
-    """Run one cut finder on one batch; returns (micro-buffer entries, fill result)."""
+    """Run one cut finder on one batch; returns (micro-buffer entries, its CutFigures)."""
     ctx = r.ctx
     buf = ctx.buffer(rec.tobytes())
     mb = MicroBuffers(ctx)
     try:
         mb.prepare(m, len(rec))
-        extra = {} if finder.name == "classic" else {"width": width, **kw}
-        res = finder.fill(mb, buf, 0, len(rec), m, r.node_tex, r.hierarchy.cell_size, **extra)
+        res = finder.fill(Batch(mb, buf, 0, len(rec), m, r.node_tex, r.hierarchy.cell_size,
+                                width=width, **kw))
         return mb.read(len(rec)).copy(), res
     finally:
         mb.release()
@@ -118,13 +119,18 @@ def test_modes_fill_identical_microbuffers(demo_relighter, view, m):
     r = demo_relighter
     cam = default_views(32, 32)[view]
     rec = _receivers(r, cam)
-    finders = {"classic": r.cut_finder(RenderParams()), "mipmapped": MipmappedCut(r.ctx),
-               "hybrid": HybridCut(r.ctx, 32.0, parallax_tolerance=0.0)}
+    modes = {name: create_mode(name, r.ctx, RenderParams(mode=name, omega_tr_factor=32.0,
+                                                         parallax_tolerance=0.0))
+             for name in MODES}
     out = {}
-    for name, f in finders.items():
-        out[name], res = _fill(r, f, rec, m, cam.width)
-        assert res["done"].all(), name
-        assert res["cut_short"] == 0, name
+    try:
+        for name, mode in modes.items():
+            out[name], res = _fill(r, mode.cut, rec, m, cam.width)
+            assert res.done.all(), name
+            assert res.cut_short == 0, name
+    finally:
+        for mode in modes.values():
+            mode.release()
     for name in ("mipmapped", "hybrid"):
         assert np.array_equal(out[name], out["classic"]), name
     filled = (out["classic"][..., 1] != 0xFFFFFFFF).mean()
@@ -139,13 +145,13 @@ def test_hybrid_shares_the_walk(demo_relighter):
     r = demo_relighter
     cam = default_views(32, 32)["closeup"]
     rec = _receivers(r, cam)
-    _, classic = _fill(r, r.cut_finder(RenderParams()), rec, 16, cam.width)
+    _, classic = _fill(r, r.mode_for(RenderParams()).cut, rec, 16, cam.width)
     walks = {}
     for factor in (32.0, 6.0):
-        _, res = _fill(r, HybridCut(r.ctx, factor, parallax_tolerance=0.0), rec, 16, cam.width)
-        walks[factor] = res["extra"]["walk_visited"] / len(rec)
-        assert res["extra"]["pairs_processed"] < len(rec) * classic["visited"].mean()
-    assert walks[6.0] < walks[32.0] < classic["visited"].mean()
+        _, res = _fill(r, PairRefiner(r.ctx, omega_tr_factor=factor), rec, 16, cam.width)
+        walks[factor] = res.pairs.walk_visited / len(rec)
+        assert res.pairs.pairs_processed < len(rec) * classic.visited.mean()
+    assert walks[6.0] < walks[32.0] < classic.visited.mean()
 
 
 # -- bounded memory and completion ----------------------------------------------------------
@@ -163,10 +169,10 @@ def test_tiny_streams_and_budgets_still_complete_with_the_same_result(demo_relig
     tiny = MipmappedCut(r.ctx, steps=200, splat_budget=entries(16), max_stream_bytes=1)
     tiny.pairs_per_receiver = 1
     got, res = _fill(r, tiny, rec, 16, cam.width, budget_bytes=1)
-    e, p = res["extra"], res["peaks"]
-    assert p["stack_capacity"] == 4096 and p["stream2_capacity"] == 4096
-    assert e["flushes"] > 3 and p["peak_stack_pairs"] <= 4096
-    assert res["done"].all()
+    p = res.pairs
+    assert p.stack_capacity == 4096 and p.stream2_capacity == 4096
+    assert p.flushes > 3 and p.peak_stack_pairs <= 4096
+    assert res.done.all()
     assert np.array_equal(got, ref)
 
 
@@ -202,17 +208,17 @@ def test_render_modes_budget_and_halving(demo_relighter, mode, monkeypatch):
     base = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=16)).image
     res = r.render(cam, [mat], exact)
     s = res.stats
-    assert s["completed"] and s["mode"] == mode
+    assert s.completed and s.mode == mode
     assert np.allclose(res.image, base, rtol=1e-5, atol=1e-7)
     for key in ("ms", "mb", "mb_extra", "nodes_visited", "pairs_processed", "tile_halvings"):
-        assert key in s, key
+        assert key in s.to_dict(), key
+    assert s.pairs.pairs_processed > 0 and s.share is None
     small = r.render(cam, [mat], replace(exact, memory_budget_mb=1.0))
-    assert small.stats["batches"] > 1 and small.stats["completed"]
-    assert small.stats["mb_extra"] + small.stats["mb_microbuffers"] <= 1.0 + 0.25
+    assert small.stats.batches > 1 and small.stats.completed
+    assert small.stats.mb_extra + small.stats.mb_microbuffers <= 1.0 + 0.25
     assert np.allclose(small.image, base, rtol=1e-5, atol=1e-7)
 
-    finder = r._cut(mode, exact)
-    finder = getattr(finder, "engine", finder)          # Hybrid: its PairRefiner
+    finder = r.mode_for(exact).cut                      # both: a PairRefiner
     real = finder._alloc
     refused = {"n": 0}
 
@@ -225,7 +231,7 @@ def test_render_modes_budget_and_halving(demo_relighter, mode, monkeypatch):
     monkeypatch.setattr(finder, "_alloc", flaky)
     finder.release()
     halved = r.render(cam, [mat], exact)
-    assert halved.stats["tile_halvings"] >= 1 and halved.stats["completed"]
+    assert halved.stats.tile_halvings >= 1 and halved.stats.completed
     assert np.allclose(halved.image, base, rtol=1e-5, atol=1e-7)
 
 
@@ -248,20 +254,13 @@ def test_modes_match_the_cpu_reference_on_a_small_room(mode):
     ref, err = reference_render(gb, cloud.positions, cloud.normals, cloud.colors,
                                 n_samples=1024, seed=0, return_stderr=True)
     res = r.render(cam, [mat], RenderParams(mode=mode, microbuffer=24))
-    assert res.stats["completed"]
+    assert res.stats.completed
     got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
     assert np.all(np.abs(got.mean(0) / ref.mean(0) - 1) < 0.05)
     assert np.all(np.abs(got - ref) <= 0.15 * ref + 4 * err + 1e-3)
 
 
-# -- the refinement back-end and the benchmark ------------------------------------------------
-
-def test_transform_feedback_and_compute_backends_agree(ctx):
-    """The measurement behind the choice of compute passes: both back-ends emit every pair."""
-    f = refine_backend_figures(ctx, 1 << 12, repeat=1)
-    assert f["geometry_tf_correct"] and f["compute_correct"]
-    assert f["ns_per_pair_compute"] > 0 and f["ns_per_pair_geometry_tf"] > 0
-
+# -- the benchmark ------------------------------------------------------------------------------
 
 def test_table3_records_and_markdown(capsys):
     import argparse

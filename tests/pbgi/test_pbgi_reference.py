@@ -17,7 +17,7 @@ def _compare(relighter, cloud, cam, mat, m, n_samples, seed=0):
     ref, err = reference_render(gb, cloud.positions, cloud.normals, cloud.colors,
                                 n_samples=n_samples, seed=seed, return_stderr=True)
     res = relighter.render(cam, [mat], RenderParams(microbuffer=m))
-    assert res.stats["completed"]
+    assert res.stats.completed
     got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
     return got, ref, err
 
@@ -105,7 +105,7 @@ def test_light_straddling_the_horizon_does_not_leak():
     ratios = {}
     for m in (16, 24, 32):
         res = r.render(cam, [mat], RenderParams(microbuffer=m))
-        assert res.stats["completed"]
+        assert res.stats.completed
         got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
         ratios[m] = got.mean() / ref.mean()
     assert all(0.8 < v < 1.25 for v in ratios.values()), ratios

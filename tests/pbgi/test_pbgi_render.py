@@ -27,7 +27,7 @@ def test_white_furnace(furnace, mode):
     a, L = 0.5, 1.0
     mat = S.diffuse(a, roughness=0.5)
     res = furnace.render(FURNACE_CAM, [mat], RenderParams(mode=mode, microbuffer=24))
-    assert res.stats["completed"]
+    assert res.stats.completed
     pix, cos_v = view_cos(furnace, FURNACE_CAM, mat)
     got = res.image.reshape(-1, 4)[pix, :3]
     expect = L * albedo_of_cos(brdf.pack_params(mat), cos_v)
@@ -49,7 +49,7 @@ def test_hdr_radiance_above_half_float_stays_finite():
     for mode in ("classic", "envmap"):
         res = r.render(FURNACE_CAM, [mat], RenderParams(mode=mode, microbuffer=16))
         img = res.image[..., :3][res.image[..., 3] > 0]
-        assert np.isfinite(res.image).all() and res.stats["completed"]
+        assert np.isfinite(res.image).all() and res.stats.completed
         assert img.min() > 65504                      # the output too is above the half limit
         centre = res.image[12, 12, :3]
         assert np.allclose(centre / L, 0.9, rtol=0.03)
@@ -76,9 +76,9 @@ def test_no_nan_or_inf_at_extreme_parameters_and_grazing_views(mode):
     for cam in cams:
         for mat in MATERIALS:
             res = r.render(cam, [mat], RenderParams(mode=mode, microbuffer=8))
-            assert res.stats["receivers"] > 0, (cam, mat)
+            assert res.stats.receivers > 0, (cam, mat)
             assert np.isfinite(res.image).all() and (res.image[..., :3] >= 0).all()
-            assert res.stats["completed"] and res.stats["nonfinite_pixels"] == 0
+            assert res.stats.completed and res.stats.nonfinite_pixels == 0
 
 
 def test_tiles_assemble_into_the_full_image(furnace):
@@ -97,8 +97,8 @@ def test_memory_budget_splits_batches_without_changing_the_image(furnace):
     mat = S.diffuse(0.6)
     one = furnace.render(FURNACE_CAM, [mat], RenderParams(microbuffer=16))
     small = furnace.render(FURNACE_CAM, [mat], RenderParams(microbuffer=16, memory_budget_mb=0.1))
-    assert one.stats["batches"] == 1 and small.stats["batches"] >= 4
-    assert small.stats["mb"] < one.stats["mb"]
+    assert one.stats.batches == 1 and small.stats.batches >= 4
+    assert small.stats.mb < one.stats.mb
     assert np.array_equal(one.image, small.image)
 
 
@@ -108,14 +108,14 @@ def test_material_edit_reuses_microbuffers(furnace):
     a, b = S.diffuse(0.3), Material(base_color=(0.8, 0.2, 0.1), roughness=0.2, metallic=1.0)
     furnace.render(FURNACE_CAM, [a], RenderParams(microbuffer=16))
     edited = furnace.render(FURNACE_CAM, [b], RenderParams(microbuffer=16))
-    assert edited.stats["reused_microbuffers"]
-    furnace._mb_key = None
+    assert edited.stats.reused_microbuffers
+    furnace.forget_microbuffers()
     fresh = furnace.render(FURNACE_CAM, [b], RenderParams(microbuffer=16))
-    assert not fresh.stats["reused_microbuffers"]
+    assert not fresh.stats.reused_microbuffers
     assert np.array_equal(edited.image, fresh.image)
     moved = furnace.render(replace(FURNACE_CAM, position=FURNACE_CAM.position + 0.01), [b],
                            RenderParams(microbuffer=16))
-    assert not moved.stats["reused_microbuffers"]
+    assert not moved.stats.reused_microbuffers
 
 
 def test_new_colours_recolour_the_same_tree():
@@ -149,9 +149,9 @@ def test_stats_contract(furnace):
     res = furnace.render(FURNACE_CAM, None, RenderParams(microbuffer=12))
     s = res.stats
     for key in ("mode", "ms", "mb", "nodes_visited", "microbuffer", "width", "height", "completed"):
-        assert key in s
-    assert s["mode"] == "classic" and s["microbuffer"] == 12 and s["width"] == 24
-    assert s["ms"] > 0 and s["mb"] > 0 and s["nodes_visited"] > 1
+        assert key in s.to_dict()
+    assert s.mode == "classic" and s.microbuffer == 12 and s.width == 24
+    assert s.ms > 0 and s.mb > 0 and s.nodes_visited > 1
     assert res.image.shape == (24, 24, 4) and res.image.dtype == np.float32
     assert set(np.unique(res.image[..., 3])) <= {0.0, 1.0}
 
@@ -172,5 +172,5 @@ def test_asset_before_cloud_and_empty_views():
     assert (ia[..., 3] > 0).sum() > 30 and np.array_equal(ia, ib)
     away = S.look((0.3, 0.3, 1.5), (0.3, 0.3, 3.0), 12, 45)
     res = a.render(away, None, RenderParams(microbuffer=8))
-    assert res.stats["receivers"] == 0 and res.stats["completed"]
+    assert res.stats.receivers == 0 and res.stats.completed
     assert not res.image.any()

@@ -48,10 +48,8 @@ def spy_renders(monkeypatch) -> list[RenderCall]:
         t = tuple(int(v) for v in (tile if tile is not None
                                    else (0, 0, camera.width, camera.height)))
         st = res.stats
-        calls.append(RenderCall((camera.width, camera.height), t, st.get("mode"),
-                                st.get("microbuffer"), st.get("receivers", 0),
-                                bool(st.get("reused_microbuffers")),
-                                st.get("completed") is not False))
+        calls.append(RenderCall((camera.width, camera.height), t, st.mode, st.microbuffer,
+                                st.receivers, st.reused_microbuffers, st.completed))
         return res
     monkeypatch.setattr(Relighter, "render", render)
     return calls

@@ -92,7 +92,7 @@ def test_changes_redo_only_what_depends_on_them(ctx, renders):
     assert np.median(red) > 2 * np.median(was)                      # the asset turned red
     s.set("pbgi.mode", "envmap")
     e.frame()
-    assert e.gi_stats["mode"] == "envmap" and renders[-1].mode == "envmap"
+    assert e.gi_stats.mode == "envmap" and renders[-1].mode == "envmap"
     e.finish_refinement()
     n = len(renders)
     e.nav.orbit(10, 0)                                             # camera: everything
@@ -108,13 +108,13 @@ def test_stats_skip_tiles_outside_the_silhouette(ctx, renders):
     e = make_engine(ctx)
     e.frame()
     e.finish_refinement()
-    shown = dict(e.gi_stats)
-    assert shown["receivers"] > 0 and shown["nodes_visited"] > 0
+    shown = e.gi_stats
+    assert shown.receivers > 0 and shown.nodes_visited > 0
     e._render_gi(e.gi.camera, (0, 0, 4, 4))                       # the corner: only room
-    assert renders[-1].receivers == 0 and e.gi_stats == shown
+    assert renders[-1].receivers == 0 and e.gi_stats is shown
     e.session.settings.set("pbgi.mode", "envmap")
     e._render_gi(e.gi.camera, (0, 0, 4, 4))
-    assert e.gi_stats["mode"] == "envmap" and e.gi_stats["receivers"] == 0
+    assert e.gi_stats.mode == "envmap" and e.gi_stats.receivers == 0
 
 
 def test_screenshot_png_is_the_tone_mapped_exr(ctx, renders, tmp_path):
@@ -161,7 +161,7 @@ def test_bad_files_and_failing_renderer_become_messages(ctx, renders, monkeypatc
     n = len(renders)
     e.frame()
     e.finish_refinement()
-    assert not e.gi_failed and e.gi_stats.get("completed")
+    assert not e.gi_failed and e.gi_stats.completed
     assert sum(c.receivers for c in renders[n:]) > 100               # relit again
 
     def boom(*a, **k):      # an unexpected bug inside the renderer (fault injection)

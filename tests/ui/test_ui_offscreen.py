@@ -34,16 +34,6 @@ def _session_file(tmp_path, mode="classic") -> Path:
     return s.save(tmp_path / f"demo-{mode}.json")
 
 
-def _skip_unless_available(mode: str) -> None:
-    try:
-        from app.pbgi.renderer import IMPLEMENTED
-    except Exception as exc:  # noqa: BLE001  (the viewer shows "renderer unavailable" then)
-        pytest.fail(f"app.pbgi.renderer is not importable: {exc}")
-    if mode not in IMPLEMENTED:
-        pytest.skip(f"PBGI mode {mode!r} is not implemented in this build of app.pbgi.renderer "
-                    f"(IMPLEMENTED = {IMPLEMENTED}); its reference is added once it is")
-
-
 @pytest.mark.parametrize("mode", MODES)
 def test_offscreen_demo_matches_reference(mode, tmp_path, monkeypatch):
     """The demo scene, the asset relit by the PBGI renderer, one reference per mode."""
@@ -52,7 +42,6 @@ def test_offscreen_demo_matches_reference(mode, tmp_path, monkeypatch):
     from app.render.context import get_context
     from app.settings import load_session
     from app.ui.app import OffscreenViewer
-    _skip_unless_available(mode)
     calls = spy_renders(monkeypatch)
     viewer = OffscreenViewer(load_session(_session_file(tmp_path, mode)), (128, 128))
     assert viewer.ctx is get_context()

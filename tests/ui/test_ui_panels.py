@@ -35,7 +35,7 @@ def ui(ctx, monkeypatch):
     calls = spy_renders(monkeypatch)           # the real renderer, micro-buffer 8
     engine = ViewerEngine(ctx, small_session(), size=(900, 600))
     engine.frame()
-    assert calls and engine.renderer_available and engine.gi_stats.get("completed")
+    assert calls and engine.renderer_available and engine.gi_stats.completed
     w = ViewerWindow.__new__(ViewerWindow)          # the window's state without a window
     w.engine, w.session, w.ctx = engine, engine.session, ctx
     w.imgui, w.dialog = _Renderer(), FileDialog()
@@ -69,10 +69,11 @@ def _draw(ui, frames=3):
 
 
 def test_every_panel_draws_without_errors(ui, monkeypatch):
+    from app.pbgi.stats import ShareFigures
     from app.ui import panels
     monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {t for t, _ in panels.SECTIONS})
     ui.engine.cloud.hdr = ui.engine.cloud.ldr          # as after an expansion: LDR/HDR toggle
-    ui.engine.gi_stats.update(share_blocks=12, share_receivers=300)   # Hybrid's sharing line
+    ui.engine.gi_stats.share = ShareFigures(share_blocks=12, share_receivers=300)  # Hybrid's line
     data = _draw(ui)
     assert not ui.engine.messages, [m.text for m in ui.engine.messages]
     assert data.cmd_lists_count >= 2                   # panel column + stats box (+ overlays)

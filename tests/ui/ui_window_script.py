@@ -27,12 +27,13 @@ def shoot(viewer, name):
     write_png(OUT / f"{name}.engine.png", e.view.read_display())
     alpha = (e.view.read_linear()[..., 3] > 0).astype("uint8") * 255
     write_png(OUT / f"{name}.asset.png", alpha)
-    state["result"]["shots"][name] = {"mode": e.gi_stats.get("mode"),
+    gi = e.gi_stats
+    state["result"]["shots"][name] = {"mode": gi and gi.mode,
                                       "renderer": e.renderer_available,
                                       "renderer_class": f"{type(e.relighter).__module__}."
                                                         f"{type(e.relighter).__qualname__}",
-                                      "microbuffer": e.gi_stats.get("microbuffer"),
-                                      "completed": e.gi_stats.get("completed"),
+                                      "microbuffer": gi and gi.microbuffer,
+                                      "completed": gi and gi.completed,
                                       "messages": [m.text for m in e.messages]}
 
 

@@ -16,15 +16,14 @@ def draw(ui) -> None:
         imgui.text_wrapped(e.relighter_error or "")
         return
     st = e.gi_stats
-    if st:
+    if st is not None:
         imgui.separator_text("last gather")
-        imgui.text(f"mode {st.get('mode', '?')}   {st.get('ms', 0):.1f} ms per pass")
-        imgui.text(f"nodes visited {int(st.get('nodes_visited', 0) or 0):,}")
-        imgui.text(f"extra memory {float(st.get('mb', 0) or 0):.1f} MB   "
-                   f"M = {st.get('microbuffer', '?')}")
-        imgui.text(f"last tile {st.get('width', '?')} x {st.get('height', '?')} px"
-                   + ("" if st.get("completed", True) else "   INCOMPLETE"))
-        if st.get("share_blocks"):
-            shared = st.get("share_receivers", 0) / max(st.get("receivers", 1) or 1, 1)
-            imgui.text(f"far field shared by {int(st['share_blocks']):,} blocks "
+        imgui.text(f"mode {st.mode}   {st.ms:.1f} ms per pass")
+        imgui.text(f"nodes visited {int(st.nodes_visited):,}")
+        imgui.text(f"extra memory {st.mb:.1f} MB   M = {st.microbuffer}")
+        imgui.text(f"last tile {st.width} x {st.height} px"
+                   + ("" if st.completed else "   INCOMPLETE"))
+        if st.share is not None and st.share.share_blocks:
+            shared = st.share.share_receivers / max(st.receivers, 1)
+            imgui.text(f"far field shared by {st.share.share_blocks:,} blocks "
                        f"({100 * shared:.0f}% of pixels)")

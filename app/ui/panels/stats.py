@@ -23,10 +23,9 @@ def draw(ui) -> None:
         mode = ui.session.settings["pbgi.mode"]
         state = (f"refining {100 * st['progress']:.0f}%" if st["refining"] else "converged")
         imgui.text(f"{mode}: {state}, preview 1/{1 / st['preview_scale']:.0f}")
-        if "gi_ms" in st:
-            imgui.text(f"gather {float(st.get('gi_ms', 0) or 0):.0f} ms, "
-                       f"{int(st.get('gi_nodes_visited', 0) or 0):,} nodes, "
-                       f"{float(st.get('gi_mb', 0) or 0):.0f} MB")
+        gi = e.gi_stats
+        if gi is not None:
+            imgui.text(f"gather {gi.ms:.0f} ms, {int(gi.nodes_visited):,} nodes, {gi.mb:.0f} MB")
     else:
         imgui.text_colored((1, 0.6, 0.5, 1), "renderer unavailable")
     imgui.end()

@@ -199,7 +199,7 @@ def test_render_modes_budget_and_halving(demo_relighter, mode, monkeypatch):
     """Through the renderer: a budget of 1 MB splits the frame into batches without changing
     the image; GL refusing the first allocation halves the batch (stats say so) and the image
     is still the same; stats carry the per-mode figures. Hybrid without far-field sharing
-    (tests/test_pbgi_farfield.py has the sharing's own)."""
+    (tests/pbgi/test_pbgi_farfield.py has the sharing's own)."""
     from app.demo.room import default_views
     r = demo_relighter
     cam = default_views(32, 32)["closeup"]
@@ -241,9 +241,9 @@ def test_render_modes_budget_and_halving(demo_relighter, mode, monkeypatch):
 def test_modes_match_the_cpu_reference_on_a_small_room(mode):
     """A diffuse sphere in the small coloured room with a bright ceiling light, against the
     independent Monte Carlo reference (app.pbgi.reference). Same tolerance as Classic's test
-    (tests/test_pbgi_reference.py): mean within 5%, every pixel within 15% + 4 standard errors
-    - PBGI's cluster colours and 24 x 24 direction quantisation against a 1024-sample Monte
-    Carlo estimate; the modes themselves add nothing (they equal Classic exactly)."""
+    (tests/pbgi/test_pbgi_reference.py): mean within 5%, every pixel within 15% + 4 standard
+    errors - PBGI's cluster colours and 24 x 24 direction quantisation against a 1024-sample
+    Monte Carlo estimate; the modes themselves add nothing (they equal Classic exactly)."""
     cloud = S.box_room(0.1)
     r = Relighter()
     r.set_cloud(cloud)

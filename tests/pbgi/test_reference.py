@@ -69,7 +69,7 @@ def test_white_furnace_lambert():
 def test_white_furnace_disney_lambert_limit(sampling):
     """Disney at the Lambert limit (roughness 1, specular/metallic/sheen/clearcoat/subsurface 0)
     with V = N: albedo = base (1 + 6/168) + integral of (1 - sqrt((1+mu)/2))^5 mu / (1 + mu)
-    (see tests/test_brdf.py), so L_o = L x that, within 4 standard errors and 2%."""
+    (see tests/pbgi/test_brdf.py), so L_o = L x that, within 4 standard errors and 2%."""
     pos, nrm, col = _room(L=2.0)
     base = np.array([0.2, 0.5, 0.8])
     gb = _receivers(16, base_color=base, roughness=1.0, specular=0.0, metallic=0.0, sheen=0.0,

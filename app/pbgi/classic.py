@@ -27,6 +27,8 @@ class ClassicCut(CutFinder):
     LOOP_LIMIT (checked). ``stop_factor`` = 4 is Section 5.3's 4 Omega; nodes straddling the
     receiver's horizon are refined down to ``horizon_factor`` x Omega."""
 
+    clears_microbuffers = False       # the walk writes only the entries its nodes cover
+
     def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768, list_cap: int = 256,
                  stop_factor: float = 4.0, horizon_factor: float = 1.0, max_rounds: int = 100000,
                  defines: dict | None = None):

@@ -103,6 +103,8 @@ class PairRefiner(CutFinder):
     the budget (at most ``max_stream_bytes``) caps each stream; ``alloc(kind, *args)`` makes GL
     objects (tests inject refusals); ``defines`` go to every shader (profiling)."""
 
+    clears_microbuffers = False       # the walks write only the entries their nodes cover
+
     def __init__(self, ctx, omega_tr_factor: float = 0.0, steps: int = 16384,
                  splat_budget: int = 32768, list_cap: int = 256, stop_factor: float = 4.0,
                  horizon_factor: float = 1.0, pixel_factor: float = 1.0,

@@ -188,8 +188,9 @@ class CutFinder(ABC):
     """Fills the micro-buffers of one batch of receivers with their cuts: what distinguishes
     the micro-buffer modes (app/pbgi/classic.py, mipmapped.py, farfield.py)."""
 
-    clears_microbuffers: ClassVar[bool] = False
-    """True: ``fill`` writes every entry of its rows, so they need not be emptied first."""
+    clears_microbuffers: ClassVar[bool]
+    """True: ``fill`` writes every entry of its rows, so they need not be emptied first (every
+    finder declares it)."""
 
     @abstractmethod
     def fill(self, batch: Batch) -> CutFigures:

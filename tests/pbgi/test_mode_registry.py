@@ -36,6 +36,7 @@ def test_every_mode_is_created_by_name(ctx):
             assert isinstance(mode, MODES[name]) and mode.fits(RenderParams(mode=name))
             if isinstance(mode, MicroBufferMode):
                 assert isinstance(mode.cut, CutFinder) and not inspect.isabstract(type(mode.cut))
+                assert isinstance(mode.cut.clears_microbuffers, bool)
         finally:
             mode.release()
     with pytest.raises(ScanlightError, match="unknown render mode"):

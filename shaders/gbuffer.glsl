@@ -1,8 +1,10 @@
 // G-buffer of the asset (MRT, RGBA32F): what every PBGI mode and the final gather read per pixel.
-//   0: position relative to the hierarchy origin, w = 1 on covered pixels
-//   1: shading normal (normal map applied, bent towards the viewer), w = material id
-//   2: tangent orthogonalised against the shading normal, w = roughness (factor x texture)
-//   3: base colour (linear, factor x texture), w = metallic (factor x texture)
+// Render target k is slot k of the receiver record (app/pbgi/gpu_layout.py RECEIVER, the
+// locations below come from it), except that target 0's w is the coverage (1 on covered pixels),
+// which the compaction replaces by the pixel index:
+//   position relative to the hierarchy origin; shading normal (normal map applied, bent towards
+//   the viewer), material id; tangent orthogonalised against the shading normal, roughness
+//   (factor x texture); base colour (linear, factor x texture), metallic (factor x texture)
 // The shading normal is bent so that n . v >= 0.01: interpolated and normal-mapped normals can
 // face away from the camera at silhouettes, where the BRDF would be 0 (black rims).
 
@@ -27,6 +29,8 @@ void main() {
 #endif
 
 #ifdef FRAGMENT_SHADER
+#define RECEIVER_SLOTS_ONLY 1
+#include "gen/receivers.glsl"
 in vec3 v_position;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -42,10 +46,10 @@ uniform bool u_has_normal_tex;
 uniform sampler2D u_base_tex;
 uniform sampler2D u_mr_tex;
 uniform sampler2D u_normal_tex;
-layout(location = 0) out vec4 o_position;
-layout(location = 1) out vec4 o_normal;
-layout(location = 2) out vec4 o_tangent;
-layout(location = 3) out vec4 o_base;
+layout(location = RECEIVER_SLOT_POSITION) out vec4 o_position;   // w: coverage
+layout(location = RECEIVER_SLOT_NORMAL) out vec4 o_normal;       // w: material id
+layout(location = RECEIVER_SLOT_TANGENT) out vec4 o_tangent;     // w: roughness
+layout(location = RECEIVER_SLOT_BASE_COLOR) out vec4 o_base;     // w: metallic
 
 void main() {
     vec3 V = normalize(u_camera - v_position);

@@ -1,4 +1,4 @@
-// G-buffer pyramid geometry (app/pbgi/gmip.py holds the why and the record layout): one
+// G-buffer pyramid geometry (app/pbgi/gmip.py holds the why; the records are gen/mip.glsl): one
 // dispatch per level, finest first. Level 0 copies each receiver's position (radius 0) and
 // shading normal (half-angle 0); a coarser pixel merges its 1-4 children as (c0 + c1) + (c2 + c3)
 // with the BSH's operators: smallest sphere enclosing two spheres and the exact minimum cone
@@ -7,11 +7,11 @@
 // acos loses ~1e-4 rad), unit vectors from sqrt (llvmpipe's normalize is approximate), the
 // result is re-checked against both inputs, and grows by a margin.
 #include "lib/common.glsl"
-#include "lib/receivers.glsl"
+#include "gen/receivers.glsl"
 #define MIP_WRITABLE 1
-#include "lib/mip.glsl"
+#include "gen/mip.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = WORKGROUP_SIZE) in;
 
 uniform uint u_first;      // first receiver of the batch
 uniform uint u_offset;     // first pyramid pixel of this level
@@ -63,20 +63,20 @@ void main() {
     uint j = gl_GlobalInvocationID.x;
     if (j >= u_count) return;
     uint g = u_offset + j;
-    uvec4 L = mip_link(g);
-    if (L.y == 0u) {
-        uint rid = u_first + L.x;
+    MipLink L = mip_link(g);
+    if (L.count == 0u) {
+        uint rid = u_first + L.first;
         imageStore(mip_sphere_img, mip_texel(g), vec4(receiver_position(rid), 0.0));
         imageStore(mip_cone_img, mip_texel(g), vec4(unit(receiver_normal(rid)), 0.0));
         return;
     }
-    uint last = L.y - 1u;
+    uint last = L.count - 1u;
     vec3 c[4];
     float r[4];
     vec3 a[4];
     float t[4];
     for (uint k = 0u; k < 4u; ++k) {
-        uint ch = L.x + min(k, last);
+        uint ch = L.first + min(k, last);
         vec4 s = mip_sphere(ch);
         vec4 n = mip_cone(ch);
         c[k] = s.xyz; r[k] = s.w; a[k] = n.xyz; t[k] = n.w;

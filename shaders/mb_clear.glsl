@@ -3,12 +3,12 @@
 // iteration (one invocation per texel took ~4x as long), and E <= 2,000 stays well below the
 // 65,535 iterations an invocation may run.
 #include "lib/microbuffer.glsl"
-layout(local_size_x = 64) in;
+layout(local_size_x = WORKGROUP_SIZE) in;
 uniform uint u_width;    // entries per row
 uniform uint u_count;    // receivers (rows)
 void main() {
     uint row = gl_GlobalInvocationID.x;
     if (row >= u_count) return;
     for (uint k = 0u; k < u_width; ++k)
-        imageStore(mb_image, ivec2(int(k), int(row)), uvec4(MB_EMPTY, MB_EMPTY, 0u, 0u));
+        mb_entry_store(ivec2(int(k), int(row)), MbEntry(MB_EMPTY, MB_EMPTY));
 }

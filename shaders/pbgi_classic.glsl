@@ -4,7 +4,8 @@
 //
 // llvmpipe stops every loop of an invocation silently after 65,535 iterations in total, so one
 // dispatch does a bounded slice of the walk and the host dispatches again until no receiver is
-// left: state[i].x is the node to resume from (BSH_END when done). Within a dispatch the walk
+// left: state[i] is a ClassicState (gen/walk_state.glsl), state[i].next the node to resume from
+// (BSH_END when done). Within a dispatch the walk
 // comes first (at most u_steps nodes, at most LIST_CAP accepted nodes, at most u_splat_budget
 // entry tests: mb_rect_entries of each accepted rectangle), then one flat loop rasterises the
 // accepted nodes, entry by entry (mb_cursor: no inner loop). Re-rasterising a node is
@@ -19,7 +20,8 @@
 #include "lib/principled.glsl"
 #include "lib/bsh_textures.glsl"
 #include "lib/microbuffer.glsl"
-#include "lib/receivers.glsl"
+#include "gen/receivers.glsl"
+#include "gen/walk_state.glsl"
 
 #ifndef LIST_CAP
 #define LIST_CAP 256
@@ -28,10 +30,10 @@
 #define CUT_ORDERED_WRITES 1          // the walk accepts nodes in index order
 #include "lib/pbgi_cut.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = WORKGROUP_SIZE) in;
 
-layout(std430, binding = 1) buffer State { uvec4 state[]; };   // next node, visited, flags, tests
-layout(std430, binding = 2) buffer Counter { uint remaining; };
+layout(std430, binding = SSBO_WALK_STATE) buffer State { ClassicState state[]; };
+layout(std430, binding = SSBO_COUNTERS) buffer Counter { uint remaining; };
 
 uniform uint u_first;          // first receiver of the batch
 uniform uint u_count;          // receivers in the batch
@@ -43,30 +45,30 @@ uniform uint u_splat_budget;   // entry tests per dispatch (>= entries per recei
 uniform float u_inv_cell_area; // 1 / cell_size^2 of the hierarchy (tie-break scale)
 uniform uint u_node_count;     // BSH_END
 
-// Far-field sharing (Hybrid, app/pbgi/farfield.py): share[2i] = (centre, D) of the ball that
-// splits the tree for row i, share[2i + 1].xyz = the normal whose frame (and horizon) row i's
-// micro-buffer uses: its block's cone axis. A node whose sphere lies outside the ball is *far* (so is its whole
+// Far-field sharing (Hybrid, app/pbgi/farfield.py): row i's ShareRow (gen/share_rows.glsl) holds
+// the ball (centre, D) that splits the tree for row i and the normal whose frame (and horizon)
+// row i's micro-buffer uses: its block's cone axis. A node whose sphere lies outside the ball is *far* (so is its whole
 // sub-tree: a parent's sphere contains its children's). SHARE_SPLIT 1: row i is a block of
 // receivers and walks only the far field (from the block's centre, in its normal-cone frame);
 // SHARE_SPLIT 2: row i is a receiver and walks only the near field (D = +inf: everything).
 #ifdef SHARE_SPLIT
-layout(std430, binding = 3) readonly buffer Share { vec4 share[]; };
+#include "gen/share_rows.glsl"
 #endif
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
-    uvec4 st = state[i];
+    ClassicState st = state[i];
     uint end = u_node_count;
-    uint node = st.x;
+    uint node = st.next;
     if (node >= end) return;
 
     uint rid = u_first + i;
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
 #ifdef SHARE_SPLIT
-    vec4 ball = share[2u * i];
-    N = share[2u * i + 1u].xyz;
+    vec4 ball = vec4(share_center(i), share_ball(i));
+    N = share_frame(i);
 #endif
     vec3 T, B;
     orthonormal_basis(N, T, B);
@@ -108,7 +110,7 @@ void main() {
     // A loop cut short by the driver leaves k < count: resume at the unfinished node.
     uint resume = (it == cost && k == count) ? node : cut_list_node[min(k, count - 1u)];
     if (count == 0u) resume = node;
-    uint flags = (resume >= end ? 1u : 0u) | (it == cost ? 0u : 2u);
-    state[i] = uvec4(resume, st.y + steps, st.z | flags, st.w + it);
+    uint flags = (resume >= end ? WALK_DONE : 0u) | (it == cost ? 0u : WALK_CUT_SHORT);
+    state[i] = ClassicState(resume, st.visited + steps, st.flags | flags, st.tests + it);
     if (resume < end) atomicAdd(remaining, 1u);
 }

@@ -2,7 +2,7 @@
 // Classic", paper Section 5.2.2), one invocation per receiver of the batch.
 //
 // The refinement passes (pbgi_refine.glsl) leave *items* = sub-tree roots, each on the list of
-// one G-buffer pyramid pixel P (head(P) -> item.y -> ... -> NIL, lib/pair_streams.glsl).
+// one G-buffer pyramid pixel P (head(P) -> item.next -> ... -> NIL, gen/pair_streams.glsl).
 // Receiver q owns the items on the lists of every pixel on its path to the top of the pyramid
 // and walks each item's sub-tree [A, skip(A)) with Classic's rules and rasteriser
 // (lib/pbgi_cut.glsl). One invocation owns one micro-buffer, so writes need no atomics; items
@@ -13,10 +13,9 @@
 // are out of step, uses the flat cut_raster; both give the same entries).
 //
 // llvmpipe's loop budget: like Classic, one dispatch does a bounded slice (u_steps walk steps,
-// CUT_LIST_CAP accepted nodes, u_splat_budget micro-pixel tests) and saves where to resume:
-//   state[2i]     = (node, end of the current sub-tree, next item on the list, pixel P)
-//   state[2i + 1] = (nodes visited, flags (bit 0 done, bit 1 a loop was cut short), micro-pixel
-//                    tests, the receiver's level-0 pixel)
+// CUT_LIST_CAP accepted nodes, u_splat_budget micro-pixel tests) and saves where to resume in
+// state[i], a FinishState (gen/walk_state.glsl: the current sub-tree, the next item on the list,
+// the pixel P whose list it is, counts, flags WALK_DONE / WALK_CUT_SHORT, the level-0 pixel).
 // P == NIL: every list of this receiver is finished. A slice whose rasterisation the driver cut
 // short is redone from its start (re-rasterising is idempotent) and flagged.
 // STAGE_INIT (one invocation per level-0 pixel) points every receiver at the head of the list
@@ -25,18 +24,17 @@
 #include "lib/principled.glsl"
 #include "lib/bsh_textures.glsl"
 #include "lib/microbuffer.glsl"
-#include "lib/receivers.glsl"
-#include "lib/mip.glsl"
+#include "gen/receivers.glsl"
+#include "gen/mip.glsl"
 #include "lib/pbgi_cut.glsl"
+#include "gen/walk_state.glsl"
 
-#define NIL 0xffffffffu
+layout(local_size_x = WORKGROUP_SIZE) in;
 
-layout(local_size_x = 64) in;
-
-layout(std430, binding = 1) buffer State { uvec4 state[]; };
-layout(std430, binding = 2) buffer Counter { uint remaining; };
+layout(std430, binding = SSBO_WALK_STATE) buffer State { FinishState state[]; };
+layout(std430, binding = SSBO_COUNTERS) buffer Counter { uint remaining; };
 #define PAIR_STREAMS_READONLY 1
-#include "lib/pair_streams.glsl"
+#include "gen/pair_streams.glsl"
 
 uniform uint u_count;          // receivers in the batch (STAGE_INIT: level-0 pixels)
 #ifndef STAGE_INIT
@@ -52,7 +50,7 @@ uniform float u_inv_cell_area; // 1 / cell_size^2 of the hierarchy (tie-break sc
 // The ancestor of level-0 pixel p0 at ``level`` (<= 16 steps up the pyramid).
 uint ancestor(uint p0, uint level) {
     uint g = p0;
-    for (uint k = 0u; k < level; ++k) g = mip_link(g).z;
+    for (uint k = 0u; k < level; ++k) g = mip_link(g).parent;
     return g;
 }
 
@@ -60,20 +58,24 @@ void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
 #ifdef STAGE_INIT
-    uint slot = mip_link(i).x;               // level-0 pixel i -> its receiver slot
+    uint slot = mip_link(i).first;           // level-0 pixel i -> its receiver slot
     uint top = i;
     for (uint k = 0u; k < 16u; ++k) {
-        uint up = mip_link(top).z;
+        uint up = mip_link(top).parent;
         if (up == NIL) break;
         top = up;
     }
-    uvec4 s1 = state[2u * slot + 1u];
-    state[2u * slot] = uvec4(0u, 0u, head_load(top), top);
-    state[2u * slot + 1u] = uvec4(s1.x, s1.y & ~1u, s1.z, i);
+    FinishState s = state[slot];
+    s.node = 0u;
+    s.end = 0u;
+    s.next_item = head_load(top);
+    s.pixel = top;
+    s.flags &= ~WALK_DONE;
+    s.pixel0 = i;
+    state[slot] = s;
 #else
-    uvec4 s0 = state[2u * i];
-    uvec4 s1 = state[2u * i + 1u];
-    uint node = s0.x, end = s0.y, nxt = s0.z, P = s0.w, p0 = s1.w;
+    FinishState s = state[i];
+    uint node = s.node, end = s.end, nxt = s.next_item, P = s.pixel, p0 = s.pixel0;
     if (P == NIL) return;
 
     uint rid = u_first + i;
@@ -90,16 +92,16 @@ void main() {
         if (node >= end) {
             steps++;
             if (nxt == NIL) {                // this pixel's list is done: the next finer one
-                uint level = mip_link(P).w;
+                uint level = mip_link(P).level;
                 if (level == 0u) { P = NIL; break; }
                 P = ancestor(p0, level - 1u);
                 nxt = head_load(P);
                 continue;
             }
-            uvec4 item = item_load(nxt);
-            node = item.x;
-            end = item.w;                    // skip(node), stored with the item
-            nxt = item.y;
+            Item item = item_load(nxt);
+            node = item.node;
+            end = item.skip;                 // skip(node), stored with the item
+            nxt = item.next;
         }
         while (node < end && steps < u_steps) {
             uvec4 rect;
@@ -125,12 +127,12 @@ void main() {
     uint it = cut_raster_nested(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
     uint flags = 0u;
     if (k < count) {                         // the driver cut the loop short: redo this slice
-        flags = 2u;
-        node = s0.x; end = s0.y; nxt = s0.z; P = s0.w;
+        flags = WALK_CUT_SHORT;
+        node = s.node; end = s.end; nxt = s.next_item; P = s.pixel;
     }
-    if (P == NIL) flags |= 1u;
-    state[2u * i] = uvec4(node, end, nxt, P);
-    state[2u * i + 1u] = uvec4(s1.x + visited, (s1.y & ~1u) | flags, s1.z + it, p0);
+    if (P == NIL) flags |= WALK_DONE;
+    state[i] = FinishState(node, end, nxt, P, s.visited + visited, (s.flags & ~WALK_DONE) | flags,
+                           s.tests + it, p0);
     if (P != NIL) atomicAdd(remaining, 1u);
 #endif
 }

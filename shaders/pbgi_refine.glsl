@@ -39,42 +39,18 @@
 #include "lib/principled.glsl"
 #include "lib/bsh_textures.glsl"
 #include "lib/microbuffer.glsl"
-#include "lib/receivers.glsl"
-#include "lib/mip.glsl"
+#include "gen/receivers.glsl"
+#include "gen/mip.glsl"
 #include "lib/pbgi_cut.glsl"
+#include "gen/pair_streams.glsl"
 
-#define NIL 0xffffffffu
-// counters[]
-#define C_STACK 0
-#define C_S2 1
-#define C_BASE 2
-#define C_K 3
-#define C_REFINE_ARGS 4
-#define C_MOVE_ARGS 7
-#define C_MOVE_SRC 10
-#define C_MOVE_N 11
-#define C_ALLOWED 12
-#define C_PUSHED_BACK 13
-#define C_PROCESSED 14
-#define C_NODE_REFINES 15
-#define C_PIXEL_SPLITS 16
-#define C_CULLED 17
-#define C_TO_S2 18
-#define C_PEAK_STACK 19
-#define C_PASSES 20
-#define C_ACCEPTED 21
-#define C_KMAX 22
-#define C_CAP 23
-#define C_S2_CAP 24
-#define C_DISABLED_PASSES 25
-
-layout(std430, binding = 2) buffer Counters { uint counters[]; };
-#include "lib/pair_streams.glsl"
+// counters[]: PAIR_COUNTERS (app/pbgi/gpu_layout.py), indexed by the generated C_* words
+layout(std430, binding = SSBO_COUNTERS) buffer Counters { uint counters[]; };
 
 #if defined(STAGE_PREPARE) || defined(STAGE_FIXUP)
 layout(local_size_x = 1) in;
 #else
-layout(local_size_x = 64) in;
+layout(local_size_x = WORKGROUP_SIZE) in;
 #endif
 
 #ifdef STAGE_REFINE
@@ -104,7 +80,7 @@ void to_second_stream(uint A, uint P) {
     uint idx = atomicAdd(counters[C_S2], 1u);
     if (idx < counters[C_S2_CAP]) {
         uint prev = imageAtomicExchange(heads_img, mip_texel(P), idx);
-        item_store(idx, A, prev, P, tnode_link(A).x);
+        item_store(idx, Item(A, prev, P, tnode_link(A).x));
         atomicAdd(counters[C_TO_S2], 1u);
     } else {                                  // stream full: back on the stack, retried later
         uint slot = atomicAdd(counters[C_STACK], 1u);
@@ -127,7 +103,7 @@ void main() {
     else k = min(k, room);
     counters[C_BASE] = count - k;
     counters[C_K] = k;
-    counters[C_REFINE_ARGS] = (k + 63u) / 64u;
+    counters[C_REFINE_ARGS] = (k + uint(WORKGROUP_SIZE) - 1u) / uint(WORKGROUP_SIZE);
     counters[C_REFINE_ARGS + 1] = 1u;
     counters[C_REFINE_ARGS + 2] = 1u;
     counters[C_ALLOWED] = allowed;
@@ -142,7 +118,7 @@ void main() {
     counters[C_PEAK_STACK] = max(counters[C_PEAK_STACK], total);
     counters[C_MOVE_SRC] = total - moved;
     counters[C_MOVE_N] = moved;
-    counters[C_MOVE_ARGS] = (moved + 63u) / 64u;
+    counters[C_MOVE_ARGS] = (moved + uint(WORKGROUP_SIZE) - 1u) / uint(WORKGROUP_SIZE);
     counters[C_MOVE_ARGS + 1] = 1u;
     counters[C_MOVE_ARGS + 2] = 1u;
     counters[C_STACK] = base + n_out;
@@ -151,21 +127,21 @@ void main() {
 #ifdef STAGE_MOVE
     uint j = gl_GlobalInvocationID.x;
     if (j >= counters[C_MOVE_N]) return;
-    uvec2 pr = pair_load(counters[C_MOVE_SRC] + j);
-    pair_store(counters[C_BASE] + j, pr.x, pr.y);
+    Pair pr = pair_load(counters[C_MOVE_SRC] + j);
+    pair_store(counters[C_BASE] + j, pr.node, pr.pixel);
 #endif
 
 #ifdef STAGE_REFINE
     uint j = gl_GlobalInvocationID.x;
     if (j >= counters[C_K]) return;
     bool allowed = counters[C_ALLOWED] != 0u;
-    uvec2 pr = pair_load(counters[C_BASE] + j);
-    uint A = pr.x, P = pr.y;
-    uvec4 L = mip_link(P);
+    Pair pr = pair_load(counters[C_BASE] + j);
+    uint A = pr.node, P = pr.pixel;
+    MipLink L = mip_link(P);
     bool hybrid = u_omega_tr > 0.0;
 
-    if (L.y == 0u) {                         // level 0: one receiver, Classic's decision
-        uint rid = u_first + L.x;
+    if (L.count == 0u) {                     // level 0: one receiver, Classic's decision
+        uint rid = u_first + L.first;
         vec3 p = receiver_position(rid);
         vec3 N = receiver_normal(rid);
         vec3 T, B;
@@ -230,9 +206,9 @@ void main() {
         push_pairs(left, P, tnode_link(left).x, P, 2u);
         atomicAdd(counters[C_NODE_REFINES], 1u);
     } else {
-        uint n = L.y;
+        uint n = L.count;
         uint slot = atomicAdd(counters[C_STACK], n);
-        for (uint k = 0u; k < n; ++k) pair_store(slot + k, A, L.x + k);
+        for (uint k = 0u; k < n; ++k) pair_store(slot + k, A, L.first + k);
         atomicAdd(counters[C_PIXEL_SPLITS], 1u);
     }
 #endif

@@ -5,14 +5,14 @@
 // entry; the gather weights each entry with the receiver's own cosine (FRAME_NORMALS in
 // pbgi_gather.glsl). The renderer does not empty these micro-buffers first (the copy writes every
 // entry, empty ones included); a dispatch with u_clear_unshared empties the rows of receivers
-// without a block (block index SHARE_NONE) instead.
+// without a block (share_block(i) == SHARE_NONE) instead.
 #include "lib/microbuffer.glsl"
+#include "gen/block_of.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = WORKGROUP_SIZE) in;
 
-#define SHARE_NONE 0xffffffffu
-layout(rg32ui, binding = 1) uniform readonly uimage2D share_image;   // one row per block
-layout(std430, binding = 3) readonly buffer BlockOf { uint block_of[]; };  // per batch receiver
+// the block micro-buffers (MbEntry texels, as mb_image), one row per block
+layout(rg32ui, binding = IMG_SHARE_SOURCE) uniform readonly uimage2D share_image;
 
 uniform uint u_begin;          // batch receivers [u_begin, u_end) are merged by this dispatch
 uniform uint u_end;
@@ -23,12 +23,12 @@ uniform bool u_clear_unshared;  // empty the rows of unshared receivers (no copy
 void main() {
     uint i = u_begin + gl_GlobalInvocationID.x;
     if (i >= u_end) return;
-    uint b = block_of[i];
+    uint b = share_block(i);
     uint mm = mb_entries();
     if (u_clear_unshared) {
         if (b != SHARE_NONE) return;
         for (uint k = 0u; k < mm; ++k)
-            imageStore(mb_image, ivec2(int(k), int(i)), uvec4(MB_EMPTY, MB_EMPTY, 0u, 0u));
+            mb_entry_store(ivec2(int(k), int(i)), MbEntry(MB_EMPTY, MB_EMPTY));
         return;
     }
     if (b == SHARE_NONE || b < u_block0 || b >= u_block1) return;

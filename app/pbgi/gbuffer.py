@@ -2,8 +2,13 @@
 *receivers* (object pixels in image order) that every PBGI pass and the gather read.
 
 Why compact: the expensive passes run one invocation per object pixel, never on background
-pixels, and batches of receivers are sized from the memory budget (shaders/lib/receivers.glsl
-holds the record layout: the four MRT texels plus the pixel index).
+pixels, and batches of receivers are sized from the memory budget. The receiver record is
+app/pbgi/gpu_layout.py's RECEIVER: its slot k is render target k (the shader takes its output
+locations from the record), target 0's w (coverage) replaced by the pixel index.
+
+Materials: the receiver carries the textured parameters (base colour, metallic, roughness, factor
+x texture); the material table only the others (gpu_layout.TEXTURED_PARAMS is the split, and
+gen/materials.glsl's receiver_principled the one place the gather combines them).
 
 Positions are uploaded relative to the hierarchy origin (float64 on the CPU), the frame the BSH
 node centres use, so a scan far from the world origin keeps millimetre precision in float32.
@@ -14,12 +19,14 @@ from __future__ import annotations
 import numpy as np
 
 from app.camera import Camera
+from app.pbgi.gpu_layout import RECEIVER, material_rows
 from app.render.context import bind_anchor
 from app.render.programs import load_program
 from app.render.splat import gl_mat, near_far, relative_view
 
-RECEIVER_FLOATS = 16
-TARGETS = 4
+RECEIVER_FLOATS = RECEIVER.words       # one receiver = RECEIVER.slots vec4 = the render targets
+TARGETS = RECEIVER.slots
+TEXTURE_UNITS = {"base": 0, "mr": 1, "normal": 2}   # the G-buffer program's material textures
 
 
 def tile_projection(camera: Camera, near: float, far: float, tile) -> np.ndarray:
@@ -38,14 +45,10 @@ def tile_projection(camera: Camera, near: float, far: float, tile) -> np.ndarray
 
 
 def material_table(materials) -> np.ndarray:
-    """(n, 16) float32: the 13 Disney parameters per material in lib/principled.glsl's vec4
-    packing, (base rgb, subsurface), (metallic, specular, specular_tint, roughness),
-    (anisotropic, sheen, sheen_tint, clearcoat), (clearcoat_gloss, 0, 0, 0)."""
-    from app.pbgi.brdf import pack_params
-    out = np.zeros((max(len(materials), 1), 16), dtype=np.float32)
-    for i, m in enumerate(materials):
-        out[i, :13] = pack_params(m)
-    return out
+    """The material table the gather reads (SSBO_MATERIALS): one gpu_layout.MATERIAL record per
+    material - the Disney parameters no texture changes (the textured ones travel with each
+    receiver)."""
+    return material_rows(materials)
 
 
 class GBuffer:
@@ -102,8 +105,9 @@ class GBuffer:
 
     # -- rasterise --------------------------------------------------------------------------
     def render(self, camera: Camera, materials, tile=None) -> dict:
-        """Rasterise; returns receivers (n, 16) float32 in image order (row 0 at the top),
-        ``coverage`` (h, w) bool and the tile size."""
+        """Rasterise; returns receivers (n, RECEIVER_FLOATS) float32 in image order (row 0 at
+        the top; ``RECEIVER.view`` reads them as records), ``coverage`` (h, w) bool and the tile
+        size."""
         import moderngl
         x0, y0, w, h = tile if tile is not None else (0, 0, camera.width, camera.height)
         ctx = self.ctx
@@ -140,11 +144,12 @@ class GBuffer:
         cover = planes[0][..., 3] > 0.5
         ys, xs = np.nonzero(cover)
         rec = np.empty((len(ys), RECEIVER_FLOATS), dtype=np.float32)
-        for k in range(TARGETS):
-            rec[:, 4 * k:4 * k + 4] = planes[k][ys, xs]
-        rec[:, 3] = (ys * w + xs).astype(np.uint32).view(np.float32)
+        sw = RECEIVER.slot_words
+        for k in range(TARGETS):                  # slot k of every receiver = render target k
+            rec[:, sw * k:sw * (k + 1)] = planes[k][ys, xs]
+        RECEIVER.view(rec)["pixel"] = (ys * w + xs).astype(np.uint32)
         return {"receivers": rec, "coverage": cover, "width": w, "height": h,
-                "bytes": TARGETS * 16 * w * h + 4 * w * h}
+                "bytes": RECEIVER.nbytes * w * h + 4 * w * h}
 
     def _set_material(self, mid: int, m) -> None:
         prog = self.prog
@@ -152,9 +157,9 @@ class GBuffer:
         prog["u_base_color"].value = tuple(float(c) for c in m.base_color)
         prog["u_metallic"].value = float(m.metallic)
         prog["u_roughness"].value = float(m.roughness)
-        for unit, (name, arr) in enumerate((("base", m.base_color_texture),
-                                            ("mr", m.metallic_roughness_texture),
-                                            ("normal", m.normal_texture))):
+        for name, arr in (("base", m.base_color_texture), ("mr", m.metallic_roughness_texture),
+                          ("normal", m.normal_texture)):
+            unit = TEXTURE_UNITS[name]
             has = arr is not None and self.mesh.uvs is not None
             prog[f"u_has_{name}_tex"].value = has
             if has:

@@ -24,9 +24,10 @@ Both merges are made conservative on the GPU (angles from atan2, containment re-
 both inputs, a small growth margin), because a bound that is too tight would let a coarse pixel
 cull a node that one of its receivers sees.
 
-GPU records (``MipPyramid``, shaders/lib/mip.glsl): three images, one texel per pixel:
-sphere (centre.xyz, radius), cone (axis.xyz, half-angle), link (first child pixel | receiver slot
-at level 0, child count (0 at level 0), parent pixel or NIL, level).
+GPU records (``MipPyramid``; app/pbgi/gpu_layout.py MIP_SPHERE, MIP_CONE, MIP_LINK, generated
+into gen/mip.glsl): three images, one texel per pixel: sphere (centre, radius), cone (axis,
+half-angle), link (first child pixel | receiver slot at level 0, child count (0 at level 0),
+parent pixel or NIL, level).
 """
 
 from __future__ import annotations
@@ -35,12 +36,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.pbgi import gpu_layout as G
 from app.pbgi.hierarchy import merge_cones, merge_spheres
 
-NIL = 0xFFFFFFFF
-PIXEL_BYTES = 48          # sphere, cone, link: three 16-byte texels per pixel
+NIL = G.NIL
+IMAGES = {"sphere": G.MIP_SPHERE, "cone": G.MIP_CONE, "link": G.MIP_LINK}   # texel records
+PIXEL_BYTES = sum(r.nbytes for r in IMAGES.values())    # sphere, cone, link texels per pixel
 MAX_LEVELS = 16           # 2^16 x 2^16 pixels per tile at most
-GROUP = 64
+# columns of Topology.link (a MIP_LINK record per row)
+L_FIRST, L_COUNT, L_PARENT, L_LEVEL = (G.MIP_LINK.index(n) for n in
+                                       ("first", "count", "parent", "level"))
 
 
 def _spread16(v: np.ndarray) -> np.ndarray:
@@ -67,7 +72,8 @@ def z_order(pixels: np.ndarray, width: int) -> np.ndarray:
 class Topology:
     """Who is whose child in a sparse Z-order pyramid over ``n0`` receivers.
 
-    ``link`` (n_pixels, 4) uint32 as in the GPU record; ``offsets[k]`` is the first pixel of
+    ``link`` (n_pixels, 4) uint32: the MIP_LINK records (columns L_FIRST, L_COUNT, L_PARENT,
+    L_LEVEL); ``offsets[k]`` is the first pixel of
     level k (offsets[-1] == n_pixels); ``codes[k]`` the Z codes of level k; ``order`` the receiver
     slot of each level-0 pixel (Z-sorted); ``top`` the pixels of the coarsest level (where the
     refinement starts).
@@ -95,7 +101,7 @@ class Topology:
 
     def receivers_below(self, pixel: int) -> np.ndarray:
         """Receiver slots of the level-0 pixels below ``pixel`` (for tests)."""
-        lvl = int(self.link[pixel, 3])
+        lvl = int(self.link[pixel, L_LEVEL])
         code = self.codes[lvl][pixel - int(self.offsets[lvl])]
         c0 = self.codes[0] >> np.uint64(2 * lvl)
         return self.order[c0 == code]
@@ -125,19 +131,19 @@ def build_topology(codes: np.ndarray, max_top: int = 1) -> Topology:
         inverses.append(inv)
     sizes = [len(c) for c in level_codes]
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    link = np.empty((offsets[-1], 4), dtype=np.uint32)
-    link[:, 2] = NIL
+    link = np.empty((offsets[-1], G.MIP_LINK.words), dtype=np.uint32)
+    link[:, L_PARENT] = NIL
     for k, size in enumerate(sizes):
         sl = slice(offsets[k], offsets[k + 1])
-        link[sl, 3] = k
+        link[sl, L_LEVEL] = k
         if k == 0:
-            link[sl, 0] = order
-            link[sl, 1] = 0
+            link[sl, L_FIRST] = order
+            link[sl, L_COUNT] = 0
         else:
-            link[sl, 0] = offsets[k - 1] + firsts[k - 1]
-            link[sl, 1] = counts[k - 1]
+            link[sl, L_FIRST] = offsets[k - 1] + firsts[k - 1]
+            link[sl, L_COUNT] = counts[k - 1]
         if k + 1 < len(sizes):
-            link[sl, 2] = offsets[k + 1] + inverses[k]
+            link[sl, L_PARENT] = offsets[k + 1] + inverses[k]
     return Topology(link=link, offsets=offsets, codes=level_codes, order=order)
 
 
@@ -153,14 +159,14 @@ def reference_pyramid(topo: Topology, positions: np.ndarray, normals: np.ndarray
     axs = np.zeros((3, n))
     ang = np.zeros(n)
     sl = topo.level_of(0)
-    slots = topo.link[sl, 0].astype(np.int64)
+    slots = topo.link[sl, L_FIRST].astype(np.int64)
     cen[:, sl] = np.asarray(positions, dtype=np.float64)[slots].T
     nrm = np.asarray(normals, dtype=np.float64)[slots]
     axs[:, sl] = (nrm / np.linalg.norm(nrm, axis=1, keepdims=True)).T
     for k in range(1, topo.levels):
         sl = topo.level_of(k)
-        first = topo.link[sl, 0].astype(np.int64)
-        cnt = topo.link[sl, 1].astype(np.int64)
+        first = topo.link[sl, L_FIRST].astype(np.int64)
+        cnt = topo.link[sl, L_COUNT].astype(np.int64)
         ch = [first + np.minimum(j, cnt - 1) for j in range(4)]
 
         def pair(a, b):
@@ -175,8 +181,8 @@ def reference_pyramid(topo: Topology, positions: np.ndarray, normals: np.ndarray
     return {"centre": cen.T, "radius": rad, "axis": axs.T, "angle": ang}
 
 
-WIDTH = 4096              # texels per image row (MIP_WIDTH in lib/mip.glsl)
-UNITS = {"sphere": 4, "cone": 5, "link": 6}   # image units (lib/mip.glsl)
+WIDTH = G.MIP_WIDTH       # texels per image row (MIP_WIDTH in gen/mip.glsl)
+UNITS = {"sphere": G.IMAGE.MIP_SPHERE, "cone": G.IMAGE.MIP_CONE, "link": G.IMAGE.MIP_LINK}
 
 
 def image_rows(n: int) -> int:
@@ -208,8 +214,8 @@ class MipPyramid:
         if rows <= self.rows <= 2 * rows:          # reuse, unless more than twice too big
             return
         self.release()
-        for name, dtype in (("sphere", "f4"), ("cone", "f4"), ("link", "u4")):
-            self.images[name] = self._alloc((WIDTH, rows), 4, dtype)
+        for name, rec in IMAGES.items():
+            self.images[name] = self._alloc((WIDTH, rows), rec.texel_components, rec.texture_dtype)
         self.rows = rows
 
     def bind(self) -> None:
@@ -221,9 +227,9 @@ class MipPyramid:
         topo = build_topology(codes, max_top)
         n = topo.n_pixels
         self._ensure(n)
-        link = to_rows(topo.link, 4)
+        link = to_rows(topo.link, G.MIP_LINK.words)
         self.images["link"].write(link.tobytes(), viewport=(0, 0, WIDTH, len(link) // WIDTH))
-        receivers.bind_to_storage_buffer(0)
+        receivers.bind_to_storage_buffer(G.SSBO.RECEIVERS)
         self.bind()
         prog = self.prog
         prog["u_first"] = int(first)
@@ -232,7 +238,7 @@ class MipPyramid:
             cnt = sl.stop - sl.start
             prog["u_offset"] = sl.start
             prog["u_count"] = cnt
-            prog.run((cnt + GROUP - 1) // GROUP)
+            prog.run(G.dispatch_groups(cnt))
             self.ctx.memory_barrier()
         self.topology = topo
         return topo
@@ -240,14 +246,15 @@ class MipPyramid:
     def read(self) -> dict:
         """The GPU geometry of the last build as numpy (for tests)."""
         n = self.topology.n_pixels
-        sph = np.frombuffer(self.images["sphere"].read(), np.float32).reshape(-1, 4)[:n]
-        cone = np.frombuffer(self.images["cone"].read(), np.float32).reshape(-1, 4)[:n]
-        return {"centre": sph[:, :3].astype(np.float64), "radius": sph[:, 3].astype(np.float64),
-                "axis": cone[:, :3].astype(np.float64), "angle": cone[:, 3].astype(np.float64)}
+        sph = G.MIP_SPHERE.view(self.images["sphere"].read())[:n]
+        cone = G.MIP_CONE.view(self.images["cone"].read())[:n]
+        return {"centre": sph["center"].astype(np.float64),
+                "radius": sph["radius"].astype(np.float64),
+                "axis": cone["axis"].astype(np.float64), "angle": cone["angle"].astype(np.float64)}
 
     @property
     def nbytes(self) -> int:
-        return 3 * 16 * WIDTH * self.rows
+        return PIXEL_BYTES * WIDTH * self.rows
 
     def release(self) -> None:
         for t in self.images.values():

@@ -63,20 +63,26 @@ from __future__ import annotations
 
 import numpy as np
 
-NODE_WORDS = 10
-NODE_BYTES = 4 * NODE_WORDS
-NODE_BINDING_DEFAULT = 3
+from app.render.gpu_records import Field, Record
+
+NODE_BINDING_DEFAULT = 3      # app/pbgi/gpu_layout.py's SSBO.NODES
 LAYOUT_VERSION = 1
 
-# (name, numpy base type, components, first word): the single source of the record layout.
-FIELDS = (
-    ("center", np.float32, 3, 0),
-    ("radius", np.float32, 1, 3),
-    ("color", np.float32, 3, 4),
-    ("cone", np.uint32, 1, 7),
-    ("skip", np.uint32, 1, 8),
-    ("count_flags", np.uint32, 1, 9),
-)
+# The single source of the record layout (app/render/gpu_records.py: fields in word order).
+NODE = Record("BshNodeRecord", (
+    Field("center", "vec3", "bounding-sphere centre, relative to the hierarchy origin"),
+    Field("radius", "float", "bounding-sphere radius"),
+    Field("color", "vec3", "mean linear HDR radiance of the points below"),
+    Field("cone", "uint", "normal cone: octahedral axis 2 x 11 bits, half-angle 10 bits"),
+    Field("skip", "uint", "escape index: the next node after this subtree"),
+    Field("count_flags", "uint", "bits 0-30 points below, bit 31 leaf"),
+), word="uint", slot_words=1)
+NODE_WORDS = NODE.words
+NODE_BYTES = NODE.nbytes
+
+# (name, numpy base type, components, first word), derived from NODE.
+FIELDS = tuple((f.name, NODE.dtype.fields[f.name][0].base.type, f.comps, NODE.index(f.name))
+               for f in NODE.fields)
 
 AXIS_BITS = 11
 ANGLE_BITS = 10
@@ -87,17 +93,7 @@ LEAF_BIT = np.uint32(1 << 31)
 COUNT_MASK = np.uint32((1 << 31) - 1)
 
 
-def _make_dtype() -> np.dtype:
-    names, formats, offsets = [], [], []
-    for name, base, comps, word in FIELDS:
-        names.append(name)
-        formats.append((base, (comps,)) if comps > 1 else base)
-        offsets.append(4 * word)
-    return np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                     "itemsize": NODE_BYTES})
-
-
-NODE_DTYPE = _make_dtype()
+NODE_DTYPE = NODE.dtype
 
 
 # -- cone packing (numpy side; the GLSL decode below mirrors decode_cone) -------------------------

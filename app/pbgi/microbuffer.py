@@ -4,7 +4,7 @@ A micro-buffer is an M x M image of the receiver's upper hemisphere under the Nu
 Phi(x, y) = (x, y, sqrt(1 - x^2 - y^2)) (paper Section 5.2, Ritschel et al. 2009 Section 2.3),
 x, y in [-1, 1] along the receiver's frame (orthonormal_basis(N) in lib/principled.glsl).
 
-Micro-pixel table (computed here once per M, uploaded as ``vec4 (dir.xyz, weight)``):
+Micro-pixel table (computed here once per M, uploaded as gpu_layout.MB_DIRECTION texels):
   * ``weight`` = area of (pixel square intersected with the unit disc) = the pixel's
     *cosine-weighted* solid angle: integral of cos(theta) d omega over the pixel. Eq. 9's
     Omega_ij (n . w_ij) is exactly this number, so the gather weights each micro-pixel by its own
@@ -15,8 +15,8 @@ Micro-pixel table (computed here once per M, uploaded as ``vec4 (dir.xyz, weight
     always strictly above the horizon.
   * ``solid_angle`` (kept on the CPU) = the pixel's plain solid angle; sums to 2 pi.
 
-Storage: one RG32UI texel per micro-pixel, (depth key, node index); empty = (0xffffffff,
-0xffffffff). The depth key is the depth's float bits with a coplanar tie-break in its low bits
+Storage: one RG32UI texel per micro-pixel, gpu_layout.MB_ENTRY (depth key, node index); empty =
+(MB_EMPTY, MB_EMPTY). The depth key is the depth's float bits with a coplanar tie-break in its low bits
 (lib/microbuffer.glsl). Keeping the node index rather than its colour halves the memory of an RGBA16F
 texel, and radiance is read from the float32 node record at gather time, so HDR values above the
 half-float limit (65504) cannot overflow. Non-negative floats order like their bit patterns, so a
@@ -32,9 +32,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from app.pbgi.gpu_layout import (IMAGE, MB_BANDS, MB_DIRECTION, MB_EMPTY, MB_ENTRY, MB_FLUX,
+                                 TEXTURE, dispatch_groups)
+
 MIN_SIZE, MAX_SIZE, DEFAULT_SIZE = 8, 32, 24
-ENTRY_BYTES = 8                     # RG32UI (depth key, node index)
-EMPTY = 0xFFFFFFFF                  # empty key and node
+ENTRY_BYTES = MB_ENTRY.nbytes       # RG32UI (depth key, node index)
+EMPTY = MB_EMPTY                    # empty key and node
 
 
 def omega_micro(m: int) -> float:
@@ -146,8 +149,29 @@ def rect_entries(table: dict, x0: int, y0: int, x1: int, y1: int) -> int:
 
 
 def table_bytes(m: int) -> bytes:
+    """The entry table of size M as MB_DIRECTION texels."""
     t = micro_pixel_table(m)
-    return np.concatenate([t["dir"], t["weight"][:, None]], axis=1).astype("f4").tobytes()
+    rec = MB_DIRECTION.zeros(t["entries"])
+    rec["dir"], rec["weight"] = t["dir"], t["weight"]
+    return rec.tobytes()
+
+
+def flux_bytes(m: int) -> bytes:
+    """The entries' flux and solid angle as MB_FLUX texels."""
+    t = micro_pixel_table(m)
+    rec = MB_FLUX.zeros(t["entries"])
+    rec["flux"], rec["solid_angle"] = t["flux"], t["solid_angle"]
+    return rec.tobytes()
+
+
+def index_bytes(m: int) -> bytes:
+    """The (M + 1) x (M + 1) grid pixel index as MB_BANDS texels, row y = grid row y."""
+    t = micro_pixel_table(m)
+    rec = MB_BANDS.zeros((m + 1) * (m + 1)).reshape(m + 1, m + 1)
+    rec["first"][:m, :m] = t["extra_first"].reshape(m, m)
+    rec["count"][:m, :m] = t["extra_count"].reshape(m, m)
+    rec["prefix"] = t["prefix"]
+    return rec.tobytes()
 
 
 def entries(m: int) -> int:
@@ -171,48 +195,35 @@ def batch_size(m: int, budget_bytes: float, max_rows: int, n_receivers: int,
 _TABLES: dict = {}
 
 
-def table_texture(ctx, m: int):
-    """The entry table of size M as an (E, 1) RGBA32F texture (dir, weight), one per context
-    and M (texture unit 5 in lib/microbuffer.glsl)."""
-    import moderngl
-    key = (id(ctx), m, "table")
+def _cached(ctx, m: int, name: str, size, record, data):
+    key = (id(ctx), m, name)
     tex = _TABLES.get(key)
     if tex is None:
-        tex = _TABLES[key] = ctx.texture((entries(m), 1), 4, table_bytes(m), dtype="f4")
+        import moderngl
+        tex = ctx.texture(size, record.texel_components, data(m), dtype=record.texture_dtype)
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        _TABLES[key] = tex
     return tex
+
+
+def table_texture(ctx, m: int):
+    """The entry table of size M as an (E, 1) texture of MB_DIRECTION texels (dir, weight), one
+    per context and M (TEXTURE.MB_TABLE)."""
+    return _cached(ctx, m, "table", (entries(m), 1), MB_DIRECTION, table_bytes)
 
 
 def flux_texture(ctx, m: int):
-    """The entries' direction flux (micro_pixel_table's ``flux``, xyz) and solid angle (w) as
-    an (E, 1) RGBA32F texture: how a receiver weights a micro-buffer kept in another normal's
-    frame (Hybrid's far-field sharing; FRAME_NORMALS in shaders/pbgi_gather.glsl)."""
-    import moderngl
-    key = (id(ctx), m, "flux")
-    tex = _TABLES.get(key)
-    if tex is None:
-        t = micro_pixel_table(m)
-        data = np.concatenate([t["flux"], t["solid_angle"][:, None]], axis=1).astype("f4")
-        tex = _TABLES[key] = ctx.texture((entries(m), 1), 4, data.tobytes(), dtype="f4")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    return tex
+    """The entries' direction flux (micro_pixel_table's ``flux``) and solid angle as an (E, 1)
+    texture of MB_FLUX texels: how a receiver weights a micro-buffer kept in another normal's
+    frame (Hybrid's far-field sharing; FRAME_NORMALS in shaders/pbgi_gather.glsl, unit
+    TEXTURE.MB_FLUX)."""
+    return _cached(ctx, m, "flux", (entries(m), 1), MB_FLUX, flux_bytes)
 
 
 def index_texture(ctx, m: int):
-    """(M + 1) x (M + 1) RGBA32UI, texel (x, y): (first further band of pixel (x, y), number of
-    further bands, summed-area prefix of those numbers, 0) - texture unit 6."""
-    import moderngl
-    key = (id(ctx), m, "index")
-    tex = _TABLES.get(key)
-    if tex is None:
-        t = micro_pixel_table(m)
-        data = np.zeros((m + 1, m + 1, 4), dtype="u4")
-        data[:m, :m, 0] = t["extra_first"].reshape(m, m)
-        data[:m, :m, 1] = t["extra_count"].reshape(m, m)
-        data[:, :, 2] = t["prefix"]
-        tex = _TABLES[key] = ctx.texture((m + 1, m + 1), 4, data.tobytes(), dtype="u4")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    return tex
+    """(M + 1) x (M + 1) MB_BANDS texels, texel (x, y): first further band of pixel (x, y),
+    number of further bands, summed-area prefix of those numbers (TEXTURE.MB_INDEX)."""
+    return _cached(ctx, m, "index", (m + 1, m + 1), MB_BANDS, index_bytes)
 
 
 class MicroBuffers:
@@ -236,7 +247,8 @@ class MicroBuffers:
         if self.image is None or self.m != m or self.rows != capacity:
             if self.image is not None:
                 self.image.release()
-            self.image = self.ctx.texture((width, capacity), 2, dtype="u4")
+            self.image = self.ctx.texture((width, capacity), MB_ENTRY.texel_components,
+                                          dtype=MB_ENTRY.texture_dtype)
             self.m, self.rows = m, capacity
         self.table = table_texture(self.ctx, m)
         self.index = index_texture(self.ctx, m)
@@ -244,24 +256,27 @@ class MicroBuffers:
         if receivers > 0:
             self._clear["u_width"] = width
             self._clear["u_count"] = receivers
-            self._clear.run((receivers + 63) // 64)
+            self._clear.run(dispatch_groups(receivers))
             self.ctx.memory_barrier()
 
-    def bind(self, image_unit: int = 0, table_unit: int = 5, index_unit: int = 6) -> None:
+    def bind(self, image_unit: int = IMAGE.MB, table_unit: int = TEXTURE.MB_TABLE,
+             index_unit: int = TEXTURE.MB_INDEX) -> None:
         self.image.bind_to_image(image_unit, read=True, write=True)
         self.table.use(location=table_unit)
         self.index.use(location=index_unit)
 
     def read(self, receivers: int) -> np.ndarray:
-        """(receivers, E, 2) uint32 (depth key, node index) - for tests and debugging."""
+        """(receivers, E, 2) uint32 MB_ENTRY words (depth key, node index) - for tests and
+        debugging."""
         raw = np.frombuffer(self.image.read(), dtype=np.uint32)
-        return raw.reshape(self.rows, entries(self.m), 2)[:receivers]
+        return raw.reshape(self.rows, entries(self.m), MB_ENTRY.words)[:receivers]
 
     @property
     def nbytes(self) -> int:
         if self.image is None:
             return 0
-        return entries(self.m) * (self.rows * ENTRY_BYTES + 16) + 16 * (self.m + 1) ** 2
+        return (entries(self.m) * (self.rows * ENTRY_BYTES + MB_DIRECTION.nbytes)
+                + MB_BANDS.nbytes * (self.m + 1) ** 2)
 
     def release(self) -> None:
         if self.image is not None:

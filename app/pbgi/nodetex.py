@@ -3,15 +3,24 @@ for why textures: llvmpipe fetches texels ~16x faster than it loads SSBO words).
 
 Built on the GPU from the uploaded 40-byte records by shaders/bsh_textures.glsl, which decodes
 them through the generated layout header, so the record format is still defined only in
-app/pbgi/layout.py. Costs 64 bytes per node on top of the records' 40.
+app/pbgi/layout.py. Costs 64 bytes per node on top of the records' 40. Texels, width and units:
+app/pbgi/gpu_layout.py (BSH_SPHERE, BSH_CONE, BSH_LINK, BSH_COLOR; gen/bsh_textures.glsl).
 """
 
 from __future__ import annotations
 
+from app.pbgi.gpu_layout import (BSH_COLOR, BSH_CONE, BSH_LINK, BSH_SPHERE, BSH_TEX_WIDTH, IMAGE,
+                                 SSBO, TEXTURE, dispatch_groups)
 from app.render.programs import load_compute
 
-WIDTH = 4096                 # BSH_TEX_WIDTH in the GLSL
-UNITS = {"sphere": 1, "cone": 2, "link": 3, "color": 4}   # texture and image units
+WIDTH = BSH_TEX_WIDTH
+# name -> (texel record, texture unit the walks read it from, image unit the build writes it to)
+TEXTURES = {
+    "sphere": (BSH_SPHERE, TEXTURE.BSH_SPHERE, IMAGE.BSH_SPHERE),
+    "cone": (BSH_CONE, TEXTURE.BSH_CONE, IMAGE.BSH_CONE),
+    "link": (BSH_LINK, TEXTURE.BSH_LINK, IMAGE.BSH_LINK),
+    "color": (BSH_COLOR, TEXTURE.BSH_COLOR, IMAGE.BSH_COLOR),
+}
 
 
 class NodeTextures:
@@ -21,25 +30,22 @@ class NodeTextures:
         self.ctx = ctx
         self.count = int(count)
         h = max(1, (self.count + WIDTH - 1) // WIDTH)
-        self.textures = {
-            "sphere": ctx.texture((WIDTH, h), 4, dtype="f4"),
-            "cone": ctx.texture((WIDTH, h), 4, dtype="f4"),
-            "link": ctx.texture((WIDTH, h), 4, dtype="u4"),
-            "color": ctx.texture((WIDTH, h), 4, dtype="f4"),
-        }
+        self.textures = {name: ctx.texture((WIDTH, h), rec.texel_components,
+                                           dtype=rec.texture_dtype)
+                         for name, (rec, _, _) in TEXTURES.items()}
         for t in self.textures.values():
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         prog = load_compute(ctx, "bsh_textures.glsl")
-        records.bind_to_storage_buffer(3)
-        for name, unit in UNITS.items():
-            self.textures[name].bind_to_image(unit, read=False, write=True)
-        prog.run((self.count + 63) // 64)
+        records.bind_to_storage_buffer(SSBO.NODES)
+        for name, (_, _, image_unit) in TEXTURES.items():
+            self.textures[name].bind_to_image(image_unit, read=False, write=True)
+        prog.run(dispatch_groups(self.count))
         ctx.memory_barrier()
         prog.release()
-        self.nbytes = sum(4 * 4 * WIDTH * h for _ in self.textures)
+        self.nbytes = sum(rec.nbytes * WIDTH * h for rec, _, _ in TEXTURES.values())
 
     def use(self) -> None:
-        for name, unit in UNITS.items():
+        for name, (_, unit, _) in TEXTURES.items():
             self.textures[name].use(location=unit)
 
     def release(self) -> None:

@@ -22,9 +22,22 @@ GLSL_VERSION = "#version 430 core"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$')
 _ERROR_LOC = re.compile(r"(\d+):(\d+)\((\d+)\)")  # Mesa: "source:line(column)"
 
-# Generated includes: name -> "module:function" returning GLSL text.
+# Generated includes: name -> "module:function" returning GLSL text. The records and numbers
+# Python and GLSL share are declared in those modules (app/render/gpu_records.py: the helper).
 GENERATED_INCLUDES = {
     "gen/node_layout.glsl": "app.pbgi.layout:glsl_header",
+    "gen/bindings.glsl": "app.pbgi.gpu_layout:bindings_glsl",
+    "gen/receivers.glsl": "app.pbgi.gpu_layout:receivers_glsl",
+    "gen/materials.glsl": "app.pbgi.gpu_layout:materials_glsl",
+    "gen/walk_state.glsl": "app.pbgi.gpu_layout:walk_state_glsl",
+    "gen/pair_streams.glsl": "app.pbgi.gpu_layout:pair_streams_glsl",
+    "gen/mip.glsl": "app.pbgi.gpu_layout:mip_glsl",
+    "gen/microbuffer.glsl": "app.pbgi.gpu_layout:microbuffer_glsl",
+    "gen/bsh_textures.glsl": "app.pbgi.gpu_layout:bsh_textures_glsl",
+    "gen/share_rows.glsl": "app.pbgi.gpu_layout:share_rows_glsl",
+    "gen/block_of.glsl": "app.pbgi.gpu_layout:block_of_glsl",
+    "gen/frames.glsl": "app.pbgi.gpu_layout:frames_glsl",
+    "gen/gather_output.glsl": "app.pbgi.gpu_layout:gather_output_glsl",
 }
 
 

@@ -3,24 +3,14 @@
 // Why: on llvmpipe an SSBO load with per-lane addresses is a branchy scalar loop per component
 // (~40 ns for a vec4 measured here), a texelFetch is a vector gather (~2.4 ns): the walk reads
 // a few nodes per step, so this is the difference between seconds and minutes per frame.
-// Node i lives at texel (i % BSH_TEX_WIDTH, i / BSH_TEX_WIDTH) of four textures:
-//   sphere (centre relative to the hierarchy origin, radius), cone (unit axis, cos(half-angle)),
-//   link (skip, count | leaf bit, 0, 0) and colour (mean radiance, 0).
+// Node i lives at texel bsh_texel(i) of four textures; their texels are declared in
+// app/pbgi/gpu_layout.py (BSH_SPHERE, BSH_CONE, BSH_LINK, BSH_COLOR -> gen/bsh_textures.glsl).
 #ifndef SCANLIGHT_BSH_TEXTURES_GLSL
 #define SCANLIGHT_BSH_TEXTURES_GLSL
-#define BSH_TEX_WIDTH_LOG2 12u
-#define BSH_TEX_WIDTH 4096u
-#define BSH_TEX_LEAF_BIT 0x80000000u
-#define BSH_TEX_COUNT_MASK 0x7fffffffu
+#include "gen/bsh_textures.glsl"
 
-layout(binding = 1) uniform sampler2D bsh_sphere_tex;
-layout(binding = 2) uniform sampler2D bsh_cone_tex;
-layout(binding = 3) uniform usampler2D bsh_link_tex;
-layout(binding = 4) uniform sampler2D bsh_color_tex;
-
-ivec2 bsh_texel(uint i) { return ivec2(i & (BSH_TEX_WIDTH - 1u), i >> BSH_TEX_WIDTH_LOG2); }
-vec4 tnode_sphere(uint i) { return texelFetch(bsh_sphere_tex, bsh_texel(i), 0); }
-vec4 tnode_cone(uint i) { return texelFetch(bsh_cone_tex, bsh_texel(i), 0); }
-uvec2 tnode_link(uint i) { return texelFetch(bsh_link_tex, bsh_texel(i), 0).xy; }
+vec4 tnode_sphere(uint i) { return texelFetch(bsh_sphere_tex, bsh_texel(i), 0); }   // (center, radius)
+vec4 tnode_cone(uint i) { return texelFetch(bsh_cone_tex, bsh_texel(i), 0); }       // (axis, cos_angle)
+uvec2 tnode_link(uint i) { return texelFetch(bsh_link_tex, bsh_texel(i), 0).xy; }   // (skip, count_flags)
 vec3 tnode_color(uint i) { return texelFetch(bsh_color_tex, bsh_texel(i), 0).rgb; }
 #endif

@@ -1,13 +1,14 @@
 // The micro-buffer shared by every PBGI mode (see app/pbgi/microbuffer.py for the why).
-// Storage: an RG32UI image, row i = receiver i of the batch, texel k = entry k: (depth key,
-// node index), empty = (0xffffffff, 0xffffffff). (An image rather than an SSBO: llvmpipe reads
+// Storage: an RG32UI image, row i = receiver i of the batch, texel k = entry k: MbEntry (depth key,
+// node index), empty = (MB_EMPTY, MB_EMPTY); texels and tables are declared in
+// app/pbgi/gpu_layout.py (gen/microbuffer.glsl). (An image rather than an SSBO: llvmpipe reads
 // and writes images 4-7x faster.) Grid pixel (x, y) covers the square [-1 + 2x/M, -1 + 2(x+1)/M]
 // x [-1 + 2y/M, ...] of the Nusselt disc. Its entries: k = y * M + x (the band nearest the
 // horizon - every grid pixel has it, zero weight outside the disc) and, for pixels near the rim
 // that span too much elevation, further bands mb_pixel_bands(x, y).x + 0, 1, ... (see
 // app/pbgi/microbuffer.py: one ray per rim pixel over-estimates a light just above the horizon
-// up to 2x). mb_table(k) = (centroid direction in the receiver frame, cosine-weighted solid
-// angle = clipped area of the entry's region); mb_entries() = E, the texels per receiver.
+// up to 2x). mb_table(k) = MbDirection (centroid direction in the receiver frame, cosine-weighted
+// solid angle = clipped area of the entry's region); mb_entries() = E, the texels per receiver.
 // A rasteriser covers a rectangle of grid pixels with all their bands: mb_rect_entries(rect)
 // tests (see pbgi_classic.glsl's loop). The receiver frame is orthonormal_basis(N)
 // (lib/principled.glsl): x along t, y along b, z = N.
@@ -24,28 +25,12 @@
 #ifndef SCANLIGHT_MICROBUFFER_GLSL
 #define SCANLIGHT_MICROBUFFER_GLSL
 #include "lib/common.glsl"
+#include "gen/microbuffer.glsl"
 
-#ifndef MB_IMAGE_UNIT
-#define MB_IMAGE_UNIT 0
-#endif
-#ifndef MB_TABLE_UNIT
-#define MB_TABLE_UNIT 5
-#endif
-#ifndef MB_INDEX_UNIT
-#define MB_INDEX_UNIT 6
-#endif
-#define MB_EMPTY 0xffffffffu
-
-layout(rg32ui, binding = MB_IMAGE_UNIT) uniform uimage2D mb_image;
-layout(binding = MB_TABLE_UNIT) uniform sampler2D mb_table_tex;
-layout(binding = MB_INDEX_UNIT) uniform usampler2D mb_index_tex;
-
-vec4 mb_table(uint k) { return texelFetch(mb_table_tex, ivec2(int(k), 0), 0); }
-uint mb_entries() { return uint(textureSize(mb_table_tex, 0).x); }
 // (first further band, number of further bands) of grid pixel (x, y).
-uvec2 mb_pixel_bands(uint x, uint y) { return texelFetch(mb_index_tex, ivec2(x, y), 0).xy; }
-uint mb_extra_prefix(uint x, uint y) { return texelFetch(mb_index_tex, ivec2(x, y), 0).z; }
-uvec2 mb_load(uint receiver, uint k) { return imageLoad(mb_image, ivec2(int(k), int(receiver))).xy; }
+uvec2 mb_pixel_bands(uint x, uint y) { MbBands b = mb_bands(x, y); return uvec2(b.first, b.count); }
+uint mb_extra_prefix(uint x, uint y) { return mb_bands(x, y).prefix; }
+MbEntry mb_load(uint receiver, uint k) { return mb_entry_at(ivec2(int(k), int(receiver))); }
 
 // What the per-micro-pixel test needs about one node, seen from one receiver.
 struct MbNode {
@@ -150,6 +135,6 @@ uint mb_hit_key(MbNode n, vec3 w) {
 // in a pass of its own, then the node index where the key matches).
 void mb_write(uint receiver, uint k, uint key, uint node) {
     ivec2 c = ivec2(int(k), int(receiver));
-    if (key < imageLoad(mb_image, c).x) imageStore(mb_image, c, uvec4(key, node, 0u, 0u));
+    if (key < mb_entry_at(c).key) mb_entry_store(c, MbEntry(key, node));
 }
 #endif

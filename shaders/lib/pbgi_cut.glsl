@@ -91,8 +91,8 @@ void cut_write(uint receiver, uint k, uint key, uint node) {
     mb_write(receiver, k, key, node);
 #else
     ivec2 c = ivec2(int(k), int(receiver));
-    uvec2 e = imageLoad(mb_image, c).xy;
-    if (key < e.x || (key == e.x && node < e.y)) imageStore(mb_image, c, uvec4(key, node, 0u, 0u));
+    MbEntry e = mb_entry_at(c);
+    if (key < e.key || (key == e.key && node < e.node)) mb_entry_store(c, MbEntry(key, node));
 #endif
 }
 
@@ -113,9 +113,9 @@ MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
 
 // One rasteriser step: node nd against micro-buffer entry kk of a receiver with frame (T, B, N).
 void cut_test_entry(MbNode nd, uint kk, vec3 T, vec3 B, vec3 N, uint receiver) {
-    vec4 tb = mb_table(kk);
-    if (tb.w > 0.0) {
-        uint key = mb_hit_key(nd, T * tb.x + B * tb.y + N * tb.z);
+    MbDirection e = mb_table(kk);
+    if (e.weight > 0.0) {
+        uint key = mb_hit_key(nd, T * e.dir.x + B * e.dir.y + N * e.dir.z);
         if (key != MB_EMPTY) cut_write(receiver, kk, key, nd.index);
     }
 }

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 
 from app.bench.records import record
+from app.commands.options import add_param_options, param_values
 from app.errors import UsageError
 
 log = logging.getLogger(__name__)
@@ -42,7 +43,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--modes", default="classic", help="classic and/or envmap")
     parser.add_argument("--repeat", type=int, default=1, help="runs per case, the fastest kept")
     parser.add_argument("--points", type=int, default=200_000, help="points in the demo room")
-    parser.add_argument("--budget-mb", type=float, default=1024.0, help="memory budget (MB)")
+    add_param_options(parser, "bench classic")   # --budget-mb
 
 
 def run(args) -> list[dict]:
@@ -50,8 +51,7 @@ def run(args) -> list[dict]:
     from app.demo.room import default_object, default_views
     from app.io.formats import object_from_dict, placed_mesh
     from app.material import Material
-    from app.pbgi.microbuffer import MAX_SIZE, MIN_SIZE
-    from app.params import RENDER_MODES
+    from app.params import BY_KEY, RENDER_MODES
     from app.pbgi.renderer import Relighter, RenderParams
 
     viewports = _ints(args.viewports, "viewports")
@@ -63,12 +63,15 @@ def run(args) -> list[dict]:
     if any(m not in RENDER_MODES for m in modes) or not modes:
         raise UsageError(None, f"--modes must be among {', '.join(RENDER_MODES)}, "
                                f"got {args.modes!r}")
-    if any(not MIN_SIZE <= m <= MAX_SIZE for m in sizes):
-        raise UsageError(None, f"--microbuffers must be in [{MIN_SIZE}, {MAX_SIZE}]")
+    m_param = BY_KEY["pbgi.microbuffer"]
+    if any(not m_param.lo <= m <= m_param.hi for m in sizes):
+        raise UsageError(None, f"--microbuffers must be in [{m_param.range_text()}]")
     if any(not 1 <= v <= 4096 for v in viewports):
         raise UsageError(None, "--viewports must be in [1, 4096]")
     if args.repeat < 1:
         raise UsageError(None, "--repeat must be >= 1")
+
+    budget = param_values(args, "bench classic")["pbgi.memory_budget_mb"]
 
     scene = load_demo(args.points)
     r = Relighter()
@@ -88,7 +91,7 @@ def run(args) -> list[dict]:
                     for _ in range(args.repeat):
                         r.forget_microbuffers()   # time the whole frame, never a reuse
                         res = r.render(cam, [material], RenderParams(
-                            mode=mode, microbuffer=m, memory_budget_mb=args.budget_mb))
+                            mode=mode, microbuffer=m, memory_budget_mb=budget))
                         if best is None or res.stats.ms < best.ms:
                             best = res.stats
                     s = best

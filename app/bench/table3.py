@@ -32,6 +32,7 @@ import time
 import numpy as np
 
 from app.bench.records import record
+from app.commands.options import add_param_options, param_values
 
 log = logging.getLogger(__name__)
 
@@ -81,12 +82,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--modes", type=_names(ALL_MODES), default=list(ALL_MODES),
                         help="comma-separated modes (default classic,mipmapped,hybrid)")
     parser.add_argument("--repeat", type=int, default=1, help="renders per mode and cell; the fastest counts")
-    parser.add_argument("--budget-mb", type=float, default=1024.0, help="memory budget (RenderParams)")
-    parser.add_argument("--omega-tr-factor", type=float, default=None,
-                        help="Hybrid's Omega_tr factor (default: RenderParams')")
-    parser.add_argument("--parallax-tolerance", type=float, default=None,
-                        help="Hybrid's far-field sharing tolerance in micro-pixels, 0 = the exact "
-                             "Hybrid (default: RenderParams')")
+    add_param_options(parser, "bench table3")   # --budget-mb, --omega-tr-factor, ...
     parser.add_argument("--points", type=int, default=200_000, help="points of the demo room")
     parser.add_argument("--object", default="sphere", help="demo object: sphere or knot")
     parser.add_argument("--markdown", metavar="PATH", help="also write the markdown table here")
@@ -111,13 +107,12 @@ def _material():
 
 
 def _params(mode, m, args):
+    """The cell's mode and micro-buffer; everything else from the command line, whose defaults
+    are the parameter table's (the viewer's)."""
     from app.pbgi.renderer import RenderParams
-    kw = {"mode": mode, "microbuffer": int(m), "memory_budget_mb": float(args.budget_mb)}
-    if args.omega_tr_factor is not None:
-        kw["omega_tr_factor"] = float(args.omega_tr_factor)
-    if args.parallax_tolerance is not None:
-        kw["parallax_tolerance"] = float(args.parallax_tolerance)
-    return RenderParams(**kw)
+    values = param_values(args, "bench table3")
+    return RenderParams.from_settings({**RenderParams().to_settings(), **values},
+                                      mode=mode, microbuffer=int(m))
 
 
 def _render(r, cam, mode, m, args, cold: bool = False):

@@ -320,8 +320,10 @@ def param_record(*keys: str):
             return rec(**vals).validated(source)
 
         def from_settings(settings, **overrides):
-            """From anything indexable by key (app.settings.Settings, a dict of keys)."""
-            return rec(**{p.name: settings[p.key] for p in specs}, **overrides).validated()
+            """From anything indexable by key (app.settings.Settings, a dict of keys); fields
+            given as ``overrides`` (by field name) replace the settings' values."""
+            vals = {p.name: settings[p.key] for p in specs if p.name not in overrides}
+            return rec(**vals, **overrides).validated()
 
         def to_settings(self) -> dict:
             return {p.key: getattr(self, p.name) for p in specs}

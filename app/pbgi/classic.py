@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.pbgi.gpu_layout import CLASSIC_STATE, SSBO, WALK_CUT_SHORT, dispatch_groups
 from app.pbgi.microbuffer import entries, omega_micro
 from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
 
 LOOP_LIMIT = 65535            # llvmpipe: loop iterations per invocation, all loops together
-GROUP = 64                    # local_size_x of the shader
 
 
 class ClassicCut(CutFinder):
@@ -44,14 +44,14 @@ class ClassicCut(CutFinder):
         self.counter = ctx.buffer(reserve=4)
 
     def bytes_per_receiver(self, m: int) -> int:
-        """Per-receiver memory besides the micro-buffer: the resume state (uvec4)."""
-        return 16
+        """Per-receiver memory besides the micro-buffer: the resume state (CLASSIC_STATE)."""
+        return CLASSIC_STATE.nbytes
 
     def reserve_bytes(self, budget_bytes: float) -> int:
         return 0
 
     def _state(self, count: int):
-        need = 16 * count
+        need = CLASSIC_STATE.nbytes * count
         if self.state is None or self.state.size < need:
             if self.state is not None:
                 self.state.release()
@@ -67,11 +67,11 @@ class ClassicCut(CutFinder):
         if self.splat_budget < entries(m):
             raise ValueError("splat budget must cover one whole micro-buffer")
         state = self._state(count)
-        batch.receivers.bind_to_storage_buffer(0)
-        state.bind_to_storage_buffer(1)
-        self.counter.bind_to_storage_buffer(2)
+        batch.receivers.bind_to_storage_buffer(SSBO.RECEIVERS)
+        state.bind_to_storage_buffer(SSBO.WALK_STATE)
+        self.counter.bind_to_storage_buffer(SSBO.COUNTERS)
         if share is not None:
-            share.bind_to_storage_buffer(3)
+            share.bind_to_storage_buffer(SSBO.SHARE)
         nodes.use()
         batch.microbuffers.bind()
         prog = self.prog
@@ -86,7 +86,7 @@ class ClassicCut(CutFinder):
         if "u_inv_cell_area" in prog:
             prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
-        groups = (count + GROUP - 1) // GROUP
+        groups = dispatch_groups(count)
         rounds, remaining = 0, count
         while remaining and rounds < self.max_rounds:
             self.counter.write(b"\0\0\0\0")
@@ -94,11 +94,12 @@ class ClassicCut(CutFinder):
             self.ctx.memory_barrier()
             remaining = int(np.frombuffer(self.counter.read(), np.uint32)[0])
             rounds += 1
-        st = np.frombuffer(state.read(size=16 * count), np.uint32).reshape(count, 4)
-        done = st[:, 0] >= node_count
-        return CutFigures(visited=st[:, 1].astype(np.int64), done=done,
-                          tests=st[:, 3].astype(np.int64), rounds=rounds,
-                          cut_short=int(((st[:, 2] & 2) != 0).sum()), nbytes=self.state.size)
+        st = CLASSIC_STATE.view(state.read(size=CLASSIC_STATE.nbytes * count))
+        done = st["next"] >= node_count
+        return CutFigures(visited=st["visited"].astype(np.int64), done=done,
+                          tests=st["tests"].astype(np.int64), rounds=rounds,
+                          cut_short=int(((st["flags"] & WALK_CUT_SHORT) != 0).sum()),
+                          nbytes=self.state.size)
 
     def release(self) -> None:
         for b in (self.state, self.counter):

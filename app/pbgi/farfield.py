@@ -47,13 +47,14 @@ import time
 import numpy as np
 
 from app.pbgi.classic import ClassicCut
+from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, IMAGE, RECEIVER, SHARE_NONE,
+                                 SHARE_ROW, SSBO, dispatch_groups)
 from app.pbgi.microbuffer import ENTRY_BYTES, MicroBuffers, entries
 from app.pbgi.modebase import Batch, CutFigures, CutFinder
 from app.pbgi.stats import ShareFigures
 from app.render.programs import load_compute
 
-NONE = 0xFFFFFFFF
-GROUP = 64
+NONE = SHARE_NONE
 DEFAULT_TOLERANCE = 1.0       # eps, in micro-pixels
 DEFAULT_MAX_LEVEL = 3         # blocks up to 8 x 8 receivers
 DEFAULT_MAX_CONE = 0.1        # radians: the most a receiver's normal may differ from its block's
@@ -61,11 +62,11 @@ MIN_BLOCK = 4                 # receivers; a smaller block shares too little to 
 MAX_CHUNK = 128               # blocks walked per chunk: bounds the block micro-buffers (1.6 MB at
                               # M = 32) while two 64-wide workgroups still keep both cores busy
 INF = 3.0e38
-# GPU bytes besides the block micro-buffers: per receiver the near walk's resume state (16),
-# ball and frame (32), block index (4) and the gather's frame (16); per block its pseudo-receiver
-# record (64), ball and frame (32) and the far walk's resume state (16).
-RECEIVER_BYTES = 16 + 32 + 4 + 16
-BLOCK_BYTES = 64 + 32 + 16
+# GPU bytes besides the block micro-buffers: per receiver the near walk's resume state, ball and
+# frame, block index and the gather's frame; per block its pseudo-receiver record, ball and frame
+# and the far walk's resume state.
+RECEIVER_BYTES = CLASSIC_STATE.nbytes + SHARE_ROW.nbytes + BLOCK_OF.nbytes + FRAME.nbytes
+BLOCK_BYTES = RECEIVER.nbytes + SHARE_ROW.nbytes + CLASSIC_STATE.nbytes
 
 
 def micro_pixel_angle(m: int) -> float:
@@ -173,17 +174,17 @@ class FarFieldShare(CutFinder):
     def _merge(self, mb, block_buf, r0: int, r1: int, b0: int, b1: int, clear: bool = False):
         """Receivers [r0, r1) of the batch: copy blocks [b0, b1)'s buffers into theirs, or
         (``clear``) empty the rows of those without a block."""
-        block_buf.bind_to_storage_buffer(3)
+        block_buf.bind_to_storage_buffer(SSBO.BLOCK_OF)
         mb.bind()
         if self.block_mb.image is not None:
-            self.block_mb.image.bind_to_image(1, read=True, write=False)
-        else:       # no block at all: the shader still needs an image on unit 1
-            mb.image.bind_to_image(1, read=True, write=False)
+            self.block_mb.image.bind_to_image(IMAGE.SHARE_SOURCE, read=True, write=False)
+        else:       # no block at all: the shader still needs an image on that unit
+            mb.image.bind_to_image(IMAGE.SHARE_SOURCE, read=True, write=False)
         pr = self.merge
         pr["u_begin"], pr["u_end"] = r0, r1
         pr["u_block0"], pr["u_block1"] = b0, b1
         pr["u_clear_unshared"] = bool(clear)
-        pr.run((r1 - r0 + GROUP - 1) // GROUP)
+        pr.run(dispatch_groups(r1 - r0))
         self.ctx.memory_barrier()
 
     def fill(self, batch: Batch) -> CutFigures:
@@ -193,11 +194,10 @@ class FarFieldShare(CutFinder):
         nodes, cell_size, width, budget_bytes = (batch.nodes, batch.cell_size, batch.width,
                                                  batch.budget_bytes)
         t0 = time.perf_counter()
-        rec = np.frombuffer(receivers.read(size=64 * count, offset=64 * first),
-                            np.float32).reshape(count, 16)
-        pixels = rec[:, 3].copy().view(np.uint32)
-        blocks = choose_blocks(pixels, rec[:, 0:3], rec[:, 4:7], width, m, self.tolerance,
-                               self.max_level, self.max_cone)
+        rec = RECEIVER.view(receivers.read(size=RECEIVER.nbytes * count,
+                                           offset=RECEIVER.nbytes * first))
+        blocks = choose_blocks(rec["pixel"], rec["position"], rec["normal"], width, m,
+                               self.tolerance, self.max_level, self.max_cone)
         nb = len(blocks["ball"])
         block_of = blocks["block_of"]
         t1 = time.perf_counter()
@@ -212,14 +212,14 @@ class FarFieldShare(CutFinder):
             block_buf = self._buffer(block_of)
             self._merge(mb, block_buf, 0, count, NONE, NONE, clear=True)
             if nb:
-                pseudo = np.zeros((nb, 16), np.float32)
-                pseudo[:, 0:3] = blocks["centre"]
-                pseudo[:, 4:7] = blocks["axis"]
+                pseudo = RECEIVER.zeros(nb)     # a block walks as one receiver at its centre
+                pseudo["position"] = blocks["centre"]
+                pseudo["normal"] = blocks["axis"]
                 pseudo_buf = self._buffer(pseudo)
-                balls = np.zeros((nb, 2, 4), np.float32)
-                balls[:, 0, 0:3] = blocks["centre"]
-                balls[:, 0, 3] = blocks["ball"]
-                balls[:, 1, 0:3] = blocks["axis"]
+                balls = SHARE_ROW.zeros(nb)
+                balls["center"] = blocks["centre"]
+                balls["ball"] = blocks["ball"]
+                balls["frame"] = blocks["axis"]
                 ends = np.r_[blocks["first"][1:], count]
                 for b0 in range(0, nb, cap):
                     b1 = min(nb, b0 + cap)
@@ -236,18 +236,20 @@ class FarFieldShare(CutFinder):
                                 b0, b1)
                     peak_bytes = max(peak_bytes, self.block_mb.nbytes)
             t2 = time.perf_counter()
-            near_balls = np.zeros((count, 2, 4), np.float32)
-            near_balls[:, 0, 3] = INF
-            near_balls[:, 1, 0:3] = rec[:, 4:7]
+            near_balls = SHARE_ROW.zeros(count)
+            near_balls["ball"] = INF
+            near_balls["frame"] = rec["normal"]
             has = block_of != NONE
-            near_balls[has, 0, 0:3] = blocks["centre"][block_of[has]]
-            near_balls[has, 0, 3] = blocks["ball"][block_of[has]]
-            near_balls[has, 1, 0:3] = blocks["axis"][block_of[has]]
+            near_balls["center"][has] = blocks["centre"][block_of[has]]
+            near_balls["ball"][has] = blocks["ball"][block_of[has]]
+            near_balls["frame"][has] = blocks["axis"][block_of[has]]
             res = self.near.fill(Batch(mb, receivers, first, count, m, nodes, cell_size),
                                  share=self._buffer(near_balls))
             if self.frames is not None:
                 self.frames.release()
-            self.frames = ctx.buffer(np.ascontiguousarray(near_balls[:, 1]).tobytes())
+            frames = FRAME.zeros(count)
+            frames["normal"] = near_balls["frame"]
+            self.frames = ctx.buffer(frames.tobytes())
             t3 = time.perf_counter()
         finally:
             for b in self._bufs:

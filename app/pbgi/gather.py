@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.pbgi.gpu_layout import SSBO, TEXTURE, dispatch_groups
 from app.pbgi.microbuffer import flux_texture, table_texture
 from app.render.programs import load_compute
-
-GROUP = 64
 
 
 class Gather:
@@ -31,29 +30,30 @@ class Gather:
 
     def run(self, receivers, materials, output, first: int, count: int, m: int,
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None) -> None:
-        """Gather receivers [first, first + count) into ``output`` (vec4 per tile pixel).
+        """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
+        record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
         EnvironmentMap) gives the radiance. ``frames``: per batch receiver, the normal whose
-        frame its micro-buffer is in (vec4; default its own normal - Hybrid's far-field sharing
+        frame its micro-buffer is in (FRAME; default its own normal - Hybrid's far-field sharing
         gives every receiver of a block the block's frame)."""
         prog = self._prog(env is not None, frames is not None)
         if frames is not None:
-            frames.bind_to_storage_buffer(8)
-            flux_texture(self.ctx, m).use(location=7)
-        receivers.bind_to_storage_buffer(0)
-        materials.bind_to_storage_buffer(6)
-        output.bind_to_storage_buffer(7)
+            frames.bind_to_storage_buffer(SSBO.FRAMES)
+            flux_texture(self.ctx, m).use(location=TEXTURE.MB_FLUX)
+        receivers.bind_to_storage_buffer(SSBO.RECEIVERS)
+        materials.bind_to_storage_buffer(SSBO.MATERIALS)
+        output.bind_to_storage_buffer(SSBO.OUTPUT)
         if env is None:
             nodes.use()
             mb.bind()
         else:
-            table_texture(self.ctx, m).use(location=5)
-            env.texture.use(location=0)
+            table_texture(self.ctx, m).use(location=TEXTURE.MB_TABLE)
+            env.texture.use(location=TEXTURE.ENV)
             prog["u_env_texel_omega"] = env.texel_omega
         prog["u_first"] = first
         prog["u_count"] = count
         if "u_m" in prog:
             prog["u_m"] = m
         prog["u_camera"] = tuple(float(c) for c in camera_rel)
-        prog.run((count + GROUP - 1) // GROUP)
+        prog.run(dispatch_groups(count))
         self.ctx.memory_barrier()

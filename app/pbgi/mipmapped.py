@@ -49,6 +49,8 @@ import time
 import numpy as np
 
 from app.pbgi.gmip import PIXEL_BYTES, WIDTH, MipPyramid, image_rows, to_rows, z_order
+from app.pbgi.gpu_layout import (FINISH_STATE, HEAD, IMAGE, ITEM, NIL, PAIR, PAIR_COUNTERS,
+                                 RECEIVER, SSBO, WALK_CUT_SHORT, WALK_DONE, dispatch_groups)
 from app.pbgi.microbuffer import entries, omega_micro
 from app.pbgi.modebase import (AllocationError, Batch, CutFigures, CutFinder, MicroBufferMode,
                                RenderParams)
@@ -56,17 +58,19 @@ from app.pbgi.stats import PairFigures
 from app.render.programs import load_compute
 
 LOOP_LIMIT = 65535
-GROUP = 64
-COUNTER_WORDS = 32
-PAIR_BYTES = 8
-ITEM_BYTES = 16
-STATE_BYTES = 32
-# counters[] (see shaders/pbgi_refine.glsl)
-C_STACK, C_S2, C_BASE, C_K = 0, 1, 2, 3
-C_REFINE_ARGS, C_MOVE_ARGS = 4, 7
-C_PUSHED_BACK, C_PROCESSED, C_NODE_REFINES, C_PIXEL_SPLITS = 13, 14, 15, 16
-C_CULLED, C_TO_S2, C_PEAK_STACK, C_PASSES, C_ACCEPTED = 17, 18, 19, 20, 21
-C_KMAX, C_CAP, C_S2_CAP, C_DISABLED_PASSES = 22, 23, 24, 25
+COUNTER_WORDS = PAIR_COUNTERS.words
+PAIR_BYTES = PAIR.nbytes
+ITEM_BYTES = ITEM.nbytes
+STATE_BYTES = FINISH_STATE.nbytes
+# counters[] word indexes: gpu_layout.PAIR_COUNTERS (the shader's C_* from gen/pair_streams.glsl)
+_C = {f.name: PAIR_COUNTERS.index(f.name) for f in PAIR_COUNTERS.fields}
+C_STACK, C_S2, C_BASE, C_K = _C["stack"], _C["s2"], _C["base"], _C["k"]
+C_REFINE_ARGS, C_MOVE_ARGS = _C["refine_args"], _C["move_args"]
+C_PUSHED_BACK, C_PROCESSED = _C["pushed_back"], _C["processed"]
+C_NODE_REFINES, C_PIXEL_SPLITS = _C["node_refines"], _C["pixel_splits"]
+C_CULLED, C_TO_S2, C_PEAK_STACK = _C["culled"], _C["to_s2"], _C["peak_stack"]
+C_PASSES, C_ACCEPTED, C_KMAX = _C["passes"], _C["accepted"], _C["kmax"]
+C_CAP, C_S2_CAP, C_DISABLED_PASSES = _C["cap"], _C["s2_cap"], _C["disabled_passes"]
 
 MIN_STACK_PAIRS = 4096
 MIN_ITEMS = 4096
@@ -146,15 +150,16 @@ class PairRefiner(CutFinder):
             b = self._bufs[name] = self._alloc("buffer", max(int(nbytes), 16))
         return b
 
-    def _image(self, name: str, n: int, comps: int):
-        """A uint image of >= n texels (WIDTH per row), reused while large enough."""
+    def _image(self, name: str, n: int, record):
+        """An image of >= n ``record`` texels (WIDTH per row), reused while large enough."""
         rows = image_rows(n)
         t = self._images.get(name)
         if t is None or t.size[1] < rows or t.size[1] > 2 * rows:
             if t is not None:
                 t.release()
                 self._images.pop(name)
-            t = self._images[name] = self._alloc("texture", (WIDTH, rows), comps, "u4")
+            t = self._images[name] = self._alloc("texture", (WIDTH, rows),
+                                                 record.texel_components, record.texture_dtype)
         return t
 
     def stream_bytes(self, budget_bytes: float) -> int:
@@ -178,13 +183,13 @@ class PairRefiner(CutFinder):
         """The most this finder allocates whatever the batch size (the renderer subtracts it
         from the budget before sizing micro-buffer batches): both streams at their cap, one
         image row of pyramid and list heads, the counters."""
-        return (2 * self.stream_bytes(budget_bytes) + (PIXEL_BYTES + 4) * WIDTH
-                + 4 * COUNTER_WORDS + 16)
+        return (2 * self.stream_bytes(budget_bytes) + (PIXEL_BYTES + HEAD.nbytes) * WIDTH
+                + PAIR_COUNTERS.nbytes + 16)
 
     def bytes_per_receiver(self, m: int) -> int:
         """Per-receiver memory besides its micro-buffer: state, pyramid (<= 4/3 pixels per
-        receiver, 48 bytes each) and list heads."""
-        return STATE_BYTES + 2 * (48 + 4)
+        receiver, PIXEL_BYTES each) and list heads."""
+        return STATE_BYTES + 2 * (PIXEL_BYTES + HEAD.nbytes)
 
     # -- one batch -----------------------------------------------------------------------------
     def fill(self, batch: Batch) -> CutFigures:
@@ -195,24 +200,26 @@ class PairRefiner(CutFinder):
             raise ValueError("splat budget must cover one whole micro-buffer")
         ctx = self.ctx
         t_start = time.perf_counter()
-        raw = np.frombuffer(receivers.read(size=64 * count, offset=64 * first), dtype=np.uint32)
-        pixels = raw.reshape(count, 16)[:, 3]
+        pixels = RECEIVER.view(receivers.read(size=RECEIVER.nbytes * count,
+                                              offset=RECEIVER.nbytes * first))["pixel"]
         topo = self.pyramid.build(receivers, first, z_order(pixels, int(batch.width)))
         n_pix = topo.n_pixels
 
         cap, s2_cap = self.capacities(count, batch.budget_bytes)
         kmax = max(cap // 5, 1)
-        pairs = self._image("pairs", cap, 2)
-        items = self._image("items", s2_cap, 4)
-        heads = self._image("heads", n_pix, 1)
+        pairs = self._image("pairs", cap, PAIR)
+        items = self._image("items", s2_cap, ITEM)
+        heads = self._image("heads", n_pix, HEAD)
         state = self._buf("state", STATE_BYTES * count)
         counters = self._buf("counters", 4 * COUNTER_WORDS)
         remaining = self._buf("remaining", 4)
-        nil_rows = np.full((image_rows(n_pix) * WIDTH,), 0xFFFFFFFF, np.uint32).tobytes()
+        nil_rows = np.full((image_rows(n_pix) * WIDTH,), NIL, np.uint32).tobytes()
         heads.write(nil_rows, viewport=(0, 0, WIDTH, image_rows(n_pix)))
         state.clear(size=STATE_BYTES * count)
         top = topo.top
-        first_pairs = to_rows(np.stack([np.zeros(len(top), np.uint32), top], axis=1), 2)
+        first_pairs = PAIR.zeros(len(top))             # (root, every top pixel)
+        first_pairs["pixel"] = top
+        first_pairs = to_rows(PAIR.flat(first_pairs), PAIR.words)
         pairs.write(first_pairs.tobytes(), viewport=(0, 0, WIDTH, len(first_pairs) // WIDTH))
         c0 = np.zeros(COUNTER_WORDS, dtype=np.uint32)
         c0[C_STACK] = len(top)
@@ -223,13 +230,13 @@ class PairRefiner(CutFinder):
         omega_stop = self.stop_factor * om
         omega_horizon = min(self.horizon_factor, self.stop_factor) * om
         inv_cell = 1.0 / max(cell_size, 1e-9) ** 2
-        receivers.bind_to_storage_buffer(0)
-        counters.bind_to_storage_buffer(2)
+        receivers.bind_to_storage_buffer(SSBO.RECEIVERS)
+        counters.bind_to_storage_buffer(SSBO.COUNTERS)
         nodes.use()
         mb.bind()
-        pairs.bind_to_image(1, read=True, write=True)
-        items.bind_to_image(2, read=True, write=True)
-        heads.bind_to_image(3, read=True, write=True)
+        pairs.bind_to_image(IMAGE.PAIRS, read=True, write=True)
+        items.bind_to_image(IMAGE.ITEMS, read=True, write=True)
+        heads.bind_to_image(IMAGE.HEADS, read=True, write=True)
         self.pyramid.bind()
         _set(self.refine, u_first=first, u_m=m, u_omega_stop=omega_stop,
              u_omega_horizon=omega_horizon, u_omega_tr=self.omega_tr_factor * om,
@@ -272,7 +279,7 @@ class PairRefiner(CutFinder):
                 flushes += 1
                 heads.write(nil_rows, viewport=(0, 0, WIDTH, image_rows(n_pix)))
                 counters.write(np.zeros(1, np.uint32).tobytes(), offset=4 * C_S2)
-                counters.bind_to_storage_buffer(2)
+                counters.bind_to_storage_buffer(SSBO.COUNTERS)
             if not stack:
                 break
             if passes >= self.max_rounds:
@@ -281,18 +288,18 @@ class PairRefiner(CutFinder):
 
         c = np.frombuffer(counters.read(), dtype=np.uint32).copy()
         t_end = time.perf_counter()
-        st = np.frombuffer(state.read(size=STATE_BYTES * count), np.uint32).reshape(count, 8)
-        walk = st[:, 4].astype(np.int64)
-        done = ((st[:, 5] & 1) != 0) | (flushes == 0)
+        st = FINISH_STATE.view(state.read(size=STATE_BYTES * count))
+        walk = st["visited"].astype(np.int64)
+        done = ((st["flags"] & WALK_DONE) != 0) | (flushes == 0)
         done &= complete
         processed = int(c[C_PROCESSED])
         share = processed / max(count, 1)
         peak_used = (int(c[C_PEAK_STACK]) * PAIR_BYTES + peak_s2 * ITEM_BYTES
-                     + (PIXEL_BYTES + 4) * n_pix + STATE_BYTES * count)
+                     + (PIXEL_BYTES + HEAD.nbytes) * n_pix + STATE_BYTES * count)
         return CutFigures(
-            visited=walk + int(round(share)), done=done, tests=st[:, 6].astype(np.int64),
+            visited=walk + int(round(share)), done=done, tests=st["tests"].astype(np.int64),
             rounds=int(c[C_PASSES]) + finish_rounds,
-            cut_short=int(((st[:, 5] & 2) != 0).sum()), nbytes=self.nbytes,
+            cut_short=int(((st["flags"] & WALK_CUT_SHORT) != 0).sum()), nbytes=self.nbytes,
             pairs=PairFigures(
                 refine_passes=int(c[C_PASSES]), finish_rounds=finish_rounds, flushes=flushes,
                 pairs_processed=processed, node_refines=int(c[C_NODE_REFINES]),
@@ -309,12 +316,12 @@ class PairRefiner(CutFinder):
     def _finish(self, state, remaining, count: int, topo) -> tuple[int, bool]:
         """Run the finishing walk until every receiver has walked all its lists."""
         ctx = self.ctx
-        state.bind_to_storage_buffer(1)
-        remaining.bind_to_storage_buffer(2)
+        state.bind_to_storage_buffer(SSBO.WALK_STATE)
+        remaining.bind_to_storage_buffer(SSBO.COUNTERS)
         n0 = int(topo.offsets[1])
-        self.finish_init.run((n0 + GROUP - 1) // GROUP)
+        self.finish_init.run(dispatch_groups(n0))
         ctx.memory_barrier()
-        groups = (count + GROUP - 1) // GROUP
+        groups = dispatch_groups(count)
         rounds, left = 0, count
         while left and rounds < self.max_rounds:
             remaining.write(b"\0\0\0\0")

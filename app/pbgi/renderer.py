@@ -28,6 +28,7 @@ import numpy as np
 
 from app.errors import ScanlightError
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
+from app.pbgi.gpu_layout import GATHER_OUTPUT, RECEIVER
 from app.pbgi.microbuffer import MicroBuffers, entries
 from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
 from app.pbgi.modes import create_mode
@@ -220,8 +221,7 @@ class Relighter:
         t0 = time.perf_counter()
         gb = self.gbuffer.render(camera, materials, tile)
         rec = gb["receivers"]
-        rec = rec[np.argsort(z_order(np.ascontiguousarray(rec[:, 3]).view(np.uint32), w),
-                             kind="stable")]
+        rec = rec[np.argsort(z_order(RECEIVER.view(rec)["pixel"], w), kind="stable")]
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         n = len(rec)
         t1 = time.perf_counter()
@@ -237,7 +237,7 @@ class Relighter:
 
         bufs = {"receivers": ctx.buffer(rec.tobytes()),
                 "materials": ctx.buffer(material_table(materials).tobytes()),
-                "output": ctx.buffer(reserve=16 * w * h)}
+                "output": ctx.buffer(reserve=GATHER_OUTPUT.nbytes * w * h)}
         bufs["output"].clear()
         extra = sum(b.size for b in bufs.values())
         # everything the cut depends on: the micro-buffers hold this render's cut if it matches
@@ -255,18 +255,18 @@ class Relighter:
                           environment=self.environment)
             extra += self.mode_for(params).render(frame, stats)
             t2 = time.perf_counter()
-            out = np.frombuffer(bufs["output"].read(), dtype=np.float32).reshape(h, w, 4)
+            out = GATHER_OUTPUT.view(bufs["output"].read()).reshape(h, w)
         finally:
             for b in bufs.values():
                 b.release()
         cover = gb["coverage"]
-        image[..., :3] = out[..., :3]
+        image[..., :3] = out["radiance"]
         image[..., 3] = cover.astype(np.float32)
         bad = ~np.isfinite(image[..., :3])
         if bad.any():
             image[..., :3][bad] = 0.0
         stats.nonfinite_pixels = int(bad.any(axis=-1).sum())
-        stats.gather_cut_short = int((out[..., 3][cover] < 0).sum())
+        stats.gather_cut_short = int((out["status"][cover] < 0).sum())
         stats.completed = (not stats.incomplete_receivers and stats.gather_cut_short == 0
                            and stats.nonfinite_pixels == 0)
         stats.ms, stats.mb = (t2 - t0) * 1e3, max(extra, gb["bytes"]) / MB

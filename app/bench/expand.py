@@ -1,8 +1,9 @@
 """``scanlight bench expand``: HDR expansion of a 1M-point room from one capture position.
 
 The cloud is the synthetic room (app.demo.room.room_cloud) scanned to LDR with the scanner's
-auto exposure; the photo is the demo's ray-cast HDR photo; one cube map of 6 x 1024^2 at the demo
-capture position. Set-up (generating the scene) is not timed. Records: case.points, case.method,
+auto exposure; the photo is the demo's ray-cast HDR photo; one cube map at the demo capture
+position (``--face-size``, default the table's ``hdr.face_size``; the paper's setting is 1024).
+Set-up (generating the scene) is not timed. Records: case.points, case.method,
 metrics.seconds_total and one metrics.seconds_<stage> per stage, plus the point RMS on the
 overexposed points against the ground truth (and the LDR cloud's, for scale).
 
@@ -17,20 +18,18 @@ import time
 
 
 from app.bench.records import record
+from app.commands.options import add_param_options, param_values
 
 BENCH = "expand"
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--points", type=int, default=1_000_000, help="cloud size (1000000)")
-    parser.add_argument("--face-size", type=int, default=1024, help="cube-map face size (1024)")
     parser.add_argument("--methods", default="pmatch-rgb",
                         help="comma-separated methods, or 'all' (default pmatch-rgb)")
-    parser.add_argument("--solver", default="auto", choices=("auto", "cg", "direct"),
-                        help="Poisson solver (auto)")
     parser.add_argument("--poisson-stress", action="store_true",
                         help="also time both Poisson solvers with Omega = all overexposed points")
-    parser.add_argument("--seed", type=int, default=0)
+    add_param_options(parser, "bench expand")   # --face-size, --solver, --seed
 
 
 def scene(points: int, seed: int = 0):
@@ -46,21 +45,22 @@ def run(args) -> list[dict]:
     from app.hdr.evaluate import expansion_errors
     from app.hdr.pipeline import METHODS, STAGES, ExpandParams, run_expansion
 
+    values = param_values(args, "bench expand")
     methods = list(METHODS) if args.methods == "all" else args.methods.split(",")
     bad = [m for m in methods if m not in METHODS]
     if bad:
         raise UsageError(None, f"unknown method(s) {', '.join(bad)} (known: {', '.join(METHODS)})")
     if args.points < 1000:
         raise UsageError(None, "--points must be at least 1000")
-    gt, ldr, alpha, photo, positions = scene(args.points, args.seed)
+    gt, ldr, alpha, photo, positions = scene(args.points, values["hdr.seed"])
     records = []
     for method in methods:
-        params = ExpandParams(face_size=args.face_size, poisson_solver=args.solver, seed=args.seed)
+        params = ExpandParams.from_dict({**values, "method": method})
         t0 = time.perf_counter()
-        res = run_expansion(ldr, photo, positions, method, params)
+        res = run_expansion(ldr, photo, positions, params=params)
         wall = time.perf_counter() - t0
         rep = res.report
-        err = expansion_errors(res.cloud, gt, ldr, params.tl, exposure=alpha)
+        err = expansion_errors(res.cloud, gt, ldr, params.threshold_ldr, exposure=alpha)
         metrics = {"seconds_total": wall}
         for s in STAGES:
             metrics[f"seconds_{s}"] = rep["timings"].get(f"seconds_{s}", 0.0)
@@ -69,7 +69,7 @@ def run(args) -> list[dict]:
                         "alpha_error_pct": 100.0 * (rep["alpha"] / alpha - 1.0),
                         "overexposed": rep["counts"]["overexposed"],
                         "poisson_points": rep["counts"]["filled_by_poisson"]})
-        case = {"points": len(ldr), "method": method, "face_size": args.face_size,
+        case = {"points": len(ldr), "method": method, "face_size": params.face_size,
                 "faces_rendered": rep.get("capture", {}).get("faces_rendered", 0)}
         records.append(record(BENCH, case, metrics))
     if args.poisson_stress:

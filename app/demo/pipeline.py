@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,9 @@ def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
     return files
 
 
-def run_demo(out: Path, size: int = 128, n_points: int = 200_000, face_size: int = 512) -> dict:
+def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
+             face_size: int | None = None) -> dict:
+    """Every stage on the demo scene; ``face_size`` None: the table's ``hdr.face_size``."""
     from app.hdr.evaluate import expansion_errors
     from app.hdr.pipeline import ExpandParams, run_expansion
     from app.io.formats import object_from_dict, placed_mesh
@@ -76,8 +79,11 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000, face_size: int
     timings["scene_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    exp = run_expansion(scene.ldr, scene.photo, list(scene.capture_positions), "pmatch-rgb",
-                        ExpandParams(face_size=face_size), progress=_progress)
+    params = ExpandParams(method="pmatch-rgb")     # the demo's (documented) method
+    if face_size is not None:
+        params = replace(params, face_size=face_size)
+    exp = run_expansion(scene.ldr, scene.photo, list(scene.capture_positions), params=params,
+                        progress=_progress)
     if sys.stderr.isatty():
         print(file=sys.stderr)
     timings["expand_s"] = time.perf_counter() - t

@@ -39,11 +39,12 @@ def match_faces(faces, photo_ldr: np.ndarray, params, check, progress, report: d
     # panoramas), 0-0.6% on photos of another scene. The SSD rejection rate does not separate
     # them (51-86% on the real panoramas, whose photo is a blurry crop of a 512-px panorama).
     tex = np.concatenate([m.field.cost[m.textured & ~_flat(m.field)] for m in matches])
-    good = float(np.mean(tex < params.good_match_ssd * params.th)) if len(tex) else 0.0
+    good = float(np.mean(tex < params.good_match_ssd * params.threshold_ssd)) if len(tex) else 0.0
     report["match"] = {"work_size_face": params.pm_face_size,
                        "work_size_photo": list(b_work.shape[:2]),
                        "close_match_fraction": good,
-                       **scale_consistency(matches, faces, params.th, params.pm_scale_tolerance)}
+                       **scale_consistency(matches, faces, params.threshold_ssd,
+                                           params.pm_scale_tolerance)}
     return matches
 
 

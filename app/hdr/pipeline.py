@@ -7,7 +7,7 @@ Stages, each a function of the previous stage's output:
 The output cloud is on the LDR scan's scale: well-exposed points keep their colour, expanded
 points get alpha times the photo's radiance, so the two meet at the clipping threshold.
 
-Everything is in memory (arrays in, arrays out); files are app.hdr.commands' business. Progress
+Everything is in memory (arrays in, arrays out); files are app.hdr.job's business. Progress
 is reported as (fraction, stage) with a non-decreasing fraction; ``cancel`` (anything with
 ``is_set()``) is checked between chunks and raises app.jobs.Cancelled.
 """
@@ -15,7 +15,7 @@ is reported as (fraction, stage) with a non-decreasing fraction; ``cancel`` (any
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -35,85 +35,30 @@ from app.hdr.result import (LABEL_NAMES, POISSON, PROJECTED, UNCHANGED,  # noqa:
                              UNRESOLVED, Expansion)
 from app.io.clean import clean_rgb, describe_counts
 from app.jobs import Cancelled
+from app.params import BY_KEY, EXPAND_KEYS, param_record
 
-METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
+METHODS = BY_KEY["hdr.method"].choices
 STAGES = ("linearise", "capture", "exposure", "expand", "project", "poisson")
 _WEIGHTS = {"linearise": 0.02, "capture": 0.25, "exposure": 0.05, "expand": 0.43,
             "project": 0.1, "poisson": 0.15}
 
 
-@dataclass(frozen=True)
+@param_record(*EXPAND_KEYS)
 class ExpandParams:
-    """All thresholds, with the paper's defaults where it gives them."""
+    """Every setting of one expansion: the ``hdr.*`` rows of the parameter table (app/params.py),
+    which give the fields, defaults and ranges (the paper's values where it gives them). The
+    viewer builds it with ``from_settings``, the command line from its generated options."""
 
-    tl: float = 0.9                 # overexposed: LDR luminance above this
-    th: float = 1.0                 # PatchMatch: reject samples with SSD above this (7x7 SSD)
-    k: int = 16                     # Poisson k-NN graph
-    bins: int = 128                 # exposure histograms
-    exposure_iters: int = 50        # exposure bisection limit
-    exposure_include_clipped: bool = False  # see app.hdr.exposure
-    exposure: float | None = None   # skip the search, use this alpha
-    face_size: int = 1024           # cube-map face resolution
-    splat_scale: float = 1.0        # splat radius / point spacing
-    pm_face_size: int = 128         # PatchMatch works on faces box-downsampled to this
-    pm_photo_size: int = 256        # ... and on the photo box-downsampled to this
-    pm_patch_radius: int = 3        # 7x7 patches
-    pm_iterations: int = 4          # per pyramid level
-    pm_levels: int = 3
-    pm_scale_range: tuple = (0.25, 4.0)
-    pm_match: str = "rgb"           # match on "rgb" or "luminance" (what is transferred is the
-                                    # method's: pmatch-rgb colour, pmatch-lum luminance)
-    pm_scale_tolerance: float | None = 0.75  # octaves a match's scale may stray from the
-                                             # common one (None: no check)
-    good_match_ssd: float = 0.02    # x th: a textured pixel matched this well is a "close match"
-    good_match_min: float = 0.02    # warn (another scene?) when fewer textured pixels match closely
-    landis_threshold: float | None = None  # None: tl
-    landis_exponent: float = 2.0
-    l_max_percentile: float = 99.9  # ITMO peak: this percentile of the photo's luminance
-    poisson_solver: str = "auto"    # "direct" (sparse LU), "cg", or "auto" (see app.hdr.poisson)
-    seed: int = 0
+    @property
+    def pm_scale_range(self) -> tuple[float, float]:
+        """(smallest, largest) patch scale PatchMatch searches."""
+        return (self.pm_scale_min, self.pm_scale_max)
 
-    @staticmethod
-    def from_dict(d: dict) -> "ExpandParams":
-        known = {f for f in ExpandParams.__dataclass_fields__}
-        bad = sorted(set(d) - known)
-        if bad:
-            raise ScanlightError(None, f"unknown expansion parameter(s): {', '.join(bad)}")
-        d = dict(d)
-        if "pm_scale_range" in d:
-            d["pm_scale_range"] = tuple(d["pm_scale_range"])
-        try:
-            return ExpandParams(**d).validated()
-        except TypeError as exc:
-            raise ScanlightError(None, f"bad expansion parameters ({exc})") from None
-
-    def validated(self) -> "ExpandParams":
-        """self, or a ScanlightError naming the first parameter out of range."""
-        checks = [("tl", 0 < self.tl < 1, "in (0, 1)"), ("th", self.th > 0, "positive"),
-                  ("k", 1 <= self.k <= 256, "in [1, 256]"), ("bins", 2 <= self.bins <= 65536,
-                                                             "in [2, 65536]"),
-                  ("exposure_iters", self.exposure_iters >= 0, ">= 0"),
-                  ("face_size", 16 <= self.face_size <= 8192, "in [16, 8192]"),
-                  ("splat_scale", self.splat_scale > 0, "positive"),
-                  ("pm_face_size", 16 <= self.pm_face_size <= 4096, "in [16, 4096]"),
-                  ("pm_photo_size", 16 <= self.pm_photo_size <= 4096, "in [16, 4096]"),
-                  ("pm_patch_radius", 1 <= self.pm_patch_radius <= 8, "in [1, 8]"),
-                  ("pm_iterations", 1 <= self.pm_iterations <= 100, "in [1, 100]"),
-                  ("pm_levels", 1 <= self.pm_levels <= 8, "in [1, 8]"),
-                  ("pm_match", self.pm_match in ("rgb", "luminance"), "'rgb' or 'luminance'"),
-                  ("poisson_solver", self.poisson_solver in ("auto", "cg", "direct"),
-                   "'auto', 'cg' or 'direct'"),
-                  ("l_max_percentile", 50 <= self.l_max_percentile <= 100, "in [50, 100]")]
-        lo, hi = self.pm_scale_range
-        checks.append(("pm_scale_range", 0 < lo < hi, "two increasing positive numbers"))
-        if self.exposure is not None:
-            checks.append(("exposure", np.isfinite(self.exposure) and self.exposure > 0,
-                           "a positive number"))
-        for name, ok, what in checks:
-            if not ok:
-                raise ScanlightError(None, f"expansion parameter {name} must be {what}, got "
-                                           f"{getattr(self, name)!r}")
-        return self
+    def _check(self, source):
+        if not self.pm_scale_min < self.pm_scale_max:
+            raise ScanlightError(source, f"expand parameter 'pm_scale_min' "
+                                         f"({self.pm_scale_min!r}) must be below "
+                                         f"'pm_scale_max' ({self.pm_scale_max!r})")
 
 
 class _Progress:
@@ -248,14 +193,23 @@ def _capture_faces(cloud, cams, params, prog, check, overexposed, report):
     return faces
 
 
-def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "pmatch-rgb",
+def _resolve(method: str | None, params: ExpandParams | None) -> ExpandParams:
+    """The params checked, with ``method`` (when given) in place of ``params.method``: the
+    method is a field of ExpandParams, so its default is the table's and nowhere else."""
+    params = params or ExpandParams()
+    if method is not None:
+        params = replace(params, method=method)
+    return params.validated()
+
+
+def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | None = None,
                   params: ExpandParams | None = None, progress=None, cancel=None,
                   names: dict | None = None) -> Expansion:
-    """The whole pipeline; see expand_cloud for the short form."""
-    params = (params or ExpandParams()).validated()
-    if method not in METHODS:
-        raise ScanlightError(None, f"unknown expansion method {method!r} "
-                                   f"(known: {', '.join(METHODS)})")
+    """The whole pipeline; see expand_cloud for the short form. The method is
+    ``params.method``; a ``method`` given here overrides it (a shorthand for callers that
+    compare methods with otherwise equal parameters)."""
+    params = _resolve(method, params)
+    method = params.method
     check = _checker(cancel)
     t_all = time.perf_counter()
     timings = {}
@@ -283,7 +237,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
     report["warnings"] += pw
     cams = normalise_cameras(capture_cameras, names)
     y_ldr = luminance(ldr_rgb)
-    over = y_ldr > params.tl
+    over = y_ldr > params.threshold_ldr
     labels = np.zeros(n, dtype=np.uint8)
     timings["linearise"] = time.perf_counter() - t
     prog("linearise", 1.0)
@@ -301,8 +255,9 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
         return Expansion(out, report, labels, list(faces))
 
     if not over.any():
-        report["warnings"].append(f"no overexposed points (LDR luminance > {params.tl}): nothing "
-                                  "to expand; the output is the input")
+        report["warnings"].append(f"no overexposed points (LDR luminance > "
+                                  f"{params.threshold_ldr}): nothing to expand; the output is "
+                                  "the input")
         report["nothing_to_do"] = True
         return finish(ldr_rgb.copy())
 
@@ -317,14 +272,14 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
     # -- exposure -------------------------------------------------------------------------------
     t = time.perf_counter()
     prog("exposure", 0.0)
-    if params.exposure is not None:
-        alpha = float(params.exposure)
+    if params.alpha is not None:
+        alpha = float(params.alpha)
         report["exposure"] = {"alpha": alpha, "source": "given"}
     else:
-        ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.exposure_iters,
+        ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.iterations,
                            include_clipped=params.exposure_include_clipped, cancel=check)
         if not np.isfinite(ex.distance):
-            ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.exposure_iters,
+            ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.iterations,
                                include_clipped=True, cancel=check)
         alpha = ex.alpha
         report["exposure"] = {"alpha": alpha, "source": "search", "wasserstein": ex.distance,
@@ -336,9 +291,10 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
     photo_ldr = np.clip(alpha * photo_rgb, 0.0, 1.0)
     y_photo = luminance(photo_rgb)
     l_max = float(alpha * np.percentile(y_photo, params.l_max_percentile))
-    if l_max <= params.tl:
+    if l_max <= params.threshold_ldr:
         report["warnings"].append(f"at the matched exposure the photo peaks at {l_max:.3g} "
-                                  f"(<= tl = {params.tl}): it adds no range above the scan's")
+                                  f"(<= tl = {params.threshold_ldr}): it adds no range above "
+                                  "the scan's")
     l_max = max(l_max, 1.0)
     report["l_max"] = l_max
     timings["exposure"] = time.perf_counter() - t
@@ -347,7 +303,8 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
     # -- expand ---------------------------------------------------------------------------------
     t = time.perf_counter()
     prog("expand", 0.0)
-    threshold = params.tl if params.landis_threshold is None else params.landis_threshold
+    threshold = params.threshold_ldr if params.landis_threshold is None \
+        else params.landis_threshold
     hdr = ldr_rgb.astype(np.float32).copy()
     values = np.zeros((n, 3), dtype=np.float32)
     has_value = np.zeros(n, dtype=bool)
@@ -360,10 +317,10 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
             tree = cKDTree(cloud.positions)
             check()
             # the bright points and their k-NN (the expand map is non-zero only around them)
-            _, nb = tree.query(cloud.positions[idx], params.k + 1, workers=-1)
+            _, nb = tree.query(cloud.positions[idx], params.neighbours + 1, workers=-1)
             region = np.unique(np.concatenate([idx, nb.ravel()]))
             region = region[region < n]
-            _, nbr_g = tree.query(cloud.positions[region], params.k + 1, workers=-1)
+            _, nbr_g = tree.query(cloud.positions[region], params.neighbours + 1, workers=-1)
             loc = np.full(n + 1, -1, dtype=np.int64)
             loc[region] = np.arange(len(region))
             nbr = loc[np.minimum(nbr_g[:, 1:], n)]
@@ -405,7 +362,8 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
         prog("project", 0.0)
         targets = np.flatnonzero(over)
         pj = project_to_points(cloud.positions, ldr_rgb, targets, faces, sampler,
-                               params.th if method.startswith("pmatch") else None, cancel=check)
+                               params.threshold_ssd if method.startswith("pmatch") else None,
+                               cancel=check)
         values, has_value = pj.values, pj.has_value
         report["projection"] = {"overexposed_seen": int(pj.seen.sum()),
                                 "samples_accepted": pj.samples, "samples_rejected": pj.rejected}
@@ -447,11 +405,11 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
         check()
         prog("poisson", 0.3)
         if lum_only:
-            res = poisson_fill(cloud.positions, y_ldr, luminance(hdr), omega, params.k, tree,
-                               params.poisson_solver, cancel=check)
+            res = poisson_fill(cloud.positions, y_ldr, luminance(hdr), omega,
+                               params.neighbours, tree, params.poisson_solver, cancel=check)
             filled_rgb = itmo.rescale_luminance(ldr_rgb[omega], res.values[omega, 0])
         else:
-            res = poisson_fill(cloud.positions, ldr_rgb, hdr, omega, params.k, tree,
+            res = poisson_fill(cloud.positions, ldr_rgb, hdr, omega, params.neighbours, tree,
                                params.poisson_solver, cancel=check)
             filled_rgb = res.values[omega]
         hdr[omega] = np.maximum(filled_rgb, 0.0)
@@ -479,7 +437,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "
     return finish(hdr, alpha, faces)
 
 
-def expand_cloud(ldr_cloud: PointCloud, photo, capture_cameras, method: str = "pmatch-rgb",
+def expand_cloud(ldr_cloud: PointCloud, photo, capture_cameras, method: str | None = None,
                  params: ExpandParams | None = None, progress=None, cancel=None,
                  names: dict | None = None) -> tuple[PointCloud, dict]:
     """(HDR cloud, JSON-able report). ``capture_cameras``: positions (cube maps) or Cameras."""

@@ -54,7 +54,7 @@ def test_exposure_found_within_ten_percent(demo, runs):
 
 
 def test_only_overexposed_points_change_and_labels_add_up(demo, runs):
-    over = luminance(demo.ldr.colors) > FAST.tl
+    over = luminance(demo.ldr.colors) > FAST.threshold_ldr
     for m, r in runs.items():
         c = r.cloud.colors
         assert r.cloud.hdr and np.all(np.isfinite(c)) and np.all(c >= 0)
@@ -136,7 +136,7 @@ def test_nan_and_negative_photo_pixels_are_repaired_and_reported(demo):
 
 
 def _panorama_photo(name="apartment"):
-    from app.hdr.panorama_scene import sample_panorama
+    from app.bench.panorama_rooms import sample_panorama
     from app.io.exr import read_exr
     pano = read_exr(f"../shared/data/{name}.exr").rgb
     cam = Camera((0, 0, 0), (0, 0.1, -1), fov_y_deg=70, width=256, height=192)
@@ -185,16 +185,41 @@ def test_bad_camera_lists_are_refused(demo, cams):
 
 
 def test_bad_method_and_parameters_are_refused(demo):
-    with pytest.raises(ScanlightError, match="unknown expansion method"):
+    with pytest.raises(ScanlightError, match="'method' must be one of pmatch-rgb"):
         expand_cloud(demo.ldr, demo.photo, demo.capture_positions, "eiler", FAST)
-    with pytest.raises(ScanlightError, match="tl"):
+    with pytest.raises(ScanlightError, match="threshold_ldr"):
         expand_cloud(demo.ldr, demo.photo, demo.capture_positions, "landis",
-                     ExpandParams(tl=1.5))
-    with pytest.raises(ScanlightError, match="unknown expansion parameter"):
+                     ExpandParams(threshold_ldr=1.5))
+    with pytest.raises(ScanlightError, match="unknown ExpandParams field 'bogus'"):
         ExpandParams.from_dict({"face_size": 64, "bogus": 1})
+    with pytest.raises(ScanlightError, match="pm_scale_min.*below"):
+        ExpandParams(pm_scale_min=4.0, pm_scale_max=2.0).validated()
+
+
+def test_params_are_the_tables_hdr_rows():
+    """ExpandParams is generated from the parameter table: its fields, defaults and methods."""
+    from app.params import BY_KEY, EXPAND_KEYS
+    from app.hdr.pipeline import METHODS
+    p = ExpandParams()
+    assert ExpandParams.KEYS == EXPAND_KEYS
+    assert p.to_settings() == {k: BY_KEY[k].default for k in EXPAND_KEYS}
+    assert p.face_size == 512 and p.pm_scale_range == (p.pm_scale_min, p.pm_scale_max)
+    assert METHODS == BY_KEY["hdr.method"].choices
+    assert ExpandParams.from_dict({"hdr.neighbours": 8, "seed": 3}) == \
+        ExpandParams(neighbours=8, seed=3)
+
+
+def test_method_comes_from_the_params_unless_given(demo):
+    dim = PointCloud(demo.ldr.positions, demo.ldr.normals, demo.ldr.colors * 0.5, False)
+    _, rep = expand_cloud(dim, demo.photo, demo.capture_positions,
+                          params=ExpandParams(method="landis", face_size=64))
+    assert rep["method"] == "landis" and rep["params"]["method"] == "landis"
+    _, rep = expand_cloud(dim, demo.photo, demo.capture_positions, "banterle",
+                          ExpandParams(method="landis", face_size=64))
+    assert rep["method"] == "banterle"
 
 
 def test_given_exposure_skips_the_search(demo):
     _, rep = expand_cloud(demo.ldr, demo.photo, demo.capture_positions, "landis-pc",
-                          ExpandParams(exposure=0.5))
+                          ExpandParams(alpha=0.5))
     assert rep["alpha"] == 0.5 and rep["exposure"]["source"] == "given"

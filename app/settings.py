@@ -6,11 +6,12 @@ the same keys. A value out of range is clamped here (a slider or an old session 
 records and the command line reject it instead (``Param.check``).
 
 Editing follows the Mitsuba pattern: whoever edits calls ``set``; the model records *which keys
-changed*; the engine reads ``take_changes()`` once per frame and hands each key to its change
-handler (app/ui/engine.py): a BRDF slider only re-gathers the asset, an exposure change only
-re-tone-maps, a new cloud rebuilds the hierarchy. Non-settings parts of the session (files,
-capture cameras, asset transform, materials, the view camera) report their changes through the
-same change set under the keys in ``DOCUMENT_KEYS``.
+changed*; the engine reads ``take_changes()`` once per frame and hands the set to its
+``ChangeHandlers`` (napari's one-event-per-field model, dispatched once per frame): a BRDF slider
+only re-gathers the asset, an exposure change only re-tone-maps, a new cloud rebuilds the
+hierarchy. Non-settings parts of the session (files, capture cameras, asset transform,
+materials, the view camera) report their changes through the same change set under the keys in
+``DOCUMENT_KEYS``.
 """
 
 from __future__ import annotations
@@ -20,13 +21,14 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable, Iterable
 
 import numpy as np
 
 from app.camera import Camera, camera_from_dict
 from app.errors import ScanlightError
 from app.material import Material, material_from_dict
-from app.params import BY_KEY, PARAMS
+from app.params import BY_KEY, PARAMS, REDO
 
 SESSION_VERSION = 1
 
@@ -83,6 +85,63 @@ class Settings:
 
     def to_dict(self) -> dict:
         return dict(self._values)
+
+
+CHANGE_KEYS = tuple(p.key for p in PARAMS) + DOCUMENT_KEYS
+
+
+class ChangeHandlers:
+    """What a change set sets off: handlers connected per key, per key group or per
+    ``Param.redo``, called by ``dispatch`` once per frame.
+
+    Each handler runs at most once per dispatch, with the changed keys it was connected to (a
+    frozenset), and handlers run in the order they were connected: that order is the order of
+    the work (a new cloud is loaded before its colours are chosen, an asset before it is
+    placed). Keys nobody connected to change nothing. Connecting an unknown key, group or redo
+    kind is an error, so a renamed setting cannot silently lose its handler.
+    """
+
+    def __init__(self):
+        self._handlers: list[tuple[frozenset[str], Callable[[frozenset[str]], None]]] = []
+
+    def connect(self, keys: str | Iterable[str], handler: Callable[[frozenset[str]], None]):
+        """``handler(changed)`` runs when any of ``keys`` (one key or several) changed."""
+        keys = frozenset((keys,) if isinstance(keys, str) else keys)
+        unknown = keys - set(CHANGE_KEYS)
+        if unknown or not keys:
+            raise ValueError(f"no such change key: {', '.join(sorted(unknown)) or '(none)'}")
+        self._handlers.append((keys, handler))
+        return handler
+
+    def connect_group(self, group: str, handler: Callable[[frozenset[str]], None]):
+        """``handler(changed)`` runs when any key ``group.*`` changed (table or document key)."""
+        keys = [k for k in CHANGE_KEYS if k.split(".", 1)[0] == group]
+        if not keys:
+            raise ValueError(f"no change keys in group {group!r}")
+        return self.connect(keys, handler)
+
+    def connect_redo(self, redo: str, handler: Callable[[frozenset[str]], None]):
+        """``handler(changed)`` runs when a table parameter whose ``Param.redo`` is ``redo``
+        changed: a new parameter reaches its handler through the table alone."""
+        if redo not in REDO:
+            raise ValueError(f"no such redo kind {redo!r} (one of {', '.join(REDO)})")
+        keys = [p.key for p in PARAMS if p.redo == redo]
+        return self.connect(keys, handler) if keys else handler
+
+    def __iter__(self):
+        """(keys, handler) pairs in dispatch order."""
+        return iter(self._handlers)
+
+    def handlers_for(self, key: str) -> list:
+        """The handlers a change of ``key`` runs, in order."""
+        return [h for keys, h in self._handlers if key in keys]
+
+    def dispatch(self, changes: Iterable[str]) -> None:
+        changes = frozenset(changes)
+        for keys, handler in self._handlers:
+            hit = keys & changes
+            if hit:
+                handler(hit)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -12,8 +12,10 @@ from app.errors import ScanlightError
 from app.material import Material
 from app.params import BY_KEY, PARAMS, markdown_table
 from app.settings import (
+    DOCUMENT_KEYS,
     AssetTransform,
     CaptureCamera,
+    ChangeHandlers,
     Session,
     Settings,
     last_session_path,
@@ -53,6 +55,39 @@ def test_change_set_records_only_real_changes():
     assert st.take_changes() == frozenset()                # taken once
     st.reset("view.exposure")
     assert st.take_changes() == {"view.exposure"} and st["view.exposure"] == 0.0
+
+
+def test_change_handlers_run_once_each_in_connection_order():
+    """napari-style subscriptions, dispatched once per change set: per key, per group and per
+    Param.redo; each handler once, with its own changed keys, in the order connected."""
+    calls = []
+    h = ChangeHandlers()
+    h.connect(("files.cloud", "files.photo"), lambda k: calls.append(("files", k)))
+    h.connect("view.exposure", lambda k: calls.append(("exposure", k)))
+    h.connect_group("pbgi", lambda k: calls.append(("pbgi", k)))
+    h.connect_redo("display", lambda k: calls.append(("display", k)))
+    h.dispatch({"view.exposure", "pbgi.mode", "pbgi.frame_budget_ms", "files.photo",
+                "files.cloud", "capture_cameras"})
+    assert calls == [("files", {"files.cloud", "files.photo"}), ("exposure", {"view.exposure"}),
+                     ("pbgi", {"pbgi.mode", "pbgi.frame_budget_ms"}),
+                     ("display", {"view.exposure"})]
+    calls.clear()
+    h.dispatch({"hdr.bins", "capture_cameras"})            # nobody listens: nothing runs
+    h.dispatch(frozenset())
+    assert calls == []
+    redo_display = {p.key for p in PARAMS if p.redo == "display"}
+    assert {k for k in redo_display if h.handlers_for(k)} == redo_display
+
+
+def test_change_handlers_refuse_unknown_keys():
+    """A renamed or misspelt key cannot silently lose its handler."""
+    h = ChangeHandlers()
+    for connect, arg in ((h.connect, "view.exposur"), (h.connect, ()), (h.connect_group, "viw"),
+                         (h.connect_redo, "everything")):
+        with pytest.raises(ValueError):
+            connect(arg, print)
+    for key in DOCUMENT_KEYS + tuple(BY_KEY):
+        h.connect(key, print)
 
 
 def test_values_are_validated_and_clamped():

@@ -1,4 +1,7 @@
-"""Background jobs for long work (HDR expansion) shared by the viewer and the CLI.
+"""Background jobs for long work, shared by the viewer and the CLI.
+
+Generic: it knows nothing of what runs (the HDR expansion's request and work function are in
+app/hdr/job.py); it only moves a request in, progress and one result or error out.
 
 A job runs ``work(request, progress, cancel)`` on an immutable request:
 - ``progress(fraction, stage)`` reports a non-decreasing fraction in [0, 1] and a stage name;
@@ -9,12 +12,12 @@ A job runs ``work(request, progress, cancel)`` on an immutable request:
 The owner polls from its own thread (``job.poll()`` once per frame, or ``job.wait()``), so
 results, errors and progress callbacks never run on the worker. Modes:
 - "thread": a daemon thread. numpy/scipy release the GIL in their large operations and the
-  expansion has no long pure-Python loop, so the main thread stays responsive (measured in
-  tests/test_jobs.py: the main thread's worst gap stays small while an expansion runs);
+  expansion has no long pure-Python loop, so the main thread stays responsive
+  (tests/hdr/test_jobs.py checks the main thread's worst gap while an expansion runs);
 - "process": a spawned process (safe beside a GL context, unlike fork); nothing shared, so
   even a GIL-bound step cannot stall the UI, and a cancel that the work does not honour within
-  ``kill_after`` seconds terminates the process. Costs the interpreter start-up (about 1 s) and
-  the pickling of request and result; ``work`` must be a module-level function;
+  ``kill_after`` seconds terminates the process. Costs an interpreter start-up and the
+  pickling of request and result; ``work`` must be a module-level function;
 - "sync": runs inside ``start()`` (tests, scripts); cancel only works if set beforehand.
 """
 
@@ -232,42 +235,10 @@ class Job:
 
     def _join(self) -> None:
         """Reap a finished worker process without blocking the owner: a process that held a
-        large cloud takes about a second to exit, which would freeze a UI frame."""
+        large cloud is slow to exit, and waiting for it would freeze a UI frame."""
         if self._worker is not None and self.mode == "process":
             threading.Thread(target=self._worker.join, args=(10.0,), daemon=True).start()
 
 
 def start_job(work, request, mode: str = "thread", **kw) -> Job:
     return Job(work, request, mode, **kw).start()
-
-
-# ------------------------------------------------------------------------------------------------
-# The HDR expansion as a job: the request the viewer and the CLI build.
-
-@dataclass(frozen=True)
-class ExpandRequest:
-    """Inputs are in-memory objects or file paths (paths are cheaper to send to a process).
-
-    cloud: PointCloud or path; photo: (H, W, 3) array or image path; cameras: a sequence of
-    positions / Camera objects or a cameras JSON path; params: an ExpandParams or a dict of its
-    fields. out_path / report_path: where the worker writes the results (atomically); with
-    ``return_cloud=False`` the result carries only the report (no large pickle back).
-    """
-
-    cloud: object
-    photo: object
-    cameras: object
-    method: str = "pmatch-rgb"
-    params: object = None
-    out_path: str | None = None
-    report_path: str | None = None
-    return_cloud: bool = True
-
-
-def run_expand_request(req: ExpandRequest, progress, cancel):
-    """The expansion job's work: load what is given as paths, expand, write outputs.
-
-    Returns app.hdr.pipeline.Expansion (its ``cloud`` None when ``return_cloud`` is False).
-    """
-    from app.hdr import commands
-    return commands.execute_request(req, progress, cancel)

@@ -10,8 +10,8 @@ Modules, in pipeline order:
     poisson    eqs. 2-3 on the k-NN graph for the points left without a value
     pipeline   run_expansion / expand_cloud: the stages above, progress, cancel, report
     evaluate   point RMS against ground truth; the hook for the relit-render error
-    commands   `scanlight expand` and `scanlight evaluate expansion`
-    panorama_scene  a test scene from a real HDR panorama
+    job        ExpandRequest and its work function: one expansion as an app.jobs job, inputs
+               loaded by path and outputs written atomically (the CLI and the viewer use it)
 
 Where this differs from the paper, and why (each measured; see the module docstrings):
 - exposure: the clipped top bin is left out of both histograms (framing-dependent mass);

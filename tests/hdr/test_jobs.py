@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from app.errors import ScanlightError
-from app.jobs import Cancelled, ExpandRequest, Job, JobState, run_expand_request, start_job
+from app.hdr.job import ExpandRequest, run_expand_request
+from app.hdr.pipeline import ExpandParams
+from app.jobs import Cancelled, Job, JobState, start_job
 
 
 def _counting_work(request, progress, cancel):
@@ -106,8 +108,8 @@ def demo():
 def test_expansion_job_keeps_the_main_thread_responsive(demo):
     """While the expansion runs in a thread the owner's loop keeps ticking: numpy and scipy
     release the GIL in their large operations and the pipeline has no long pure-Python loop."""
-    req = ExpandRequest(demo.ldr, demo.photo, demo.capture_positions, "pmatch-rgb",
-                        {"face_size": 256})
+    req = ExpandRequest(demo.ldr, demo.photo, demo.capture_positions,
+                        ExpandParams(face_size=256))
     job = start_job(run_expand_request, req, "thread")
     gaps, last = [], time.perf_counter()
     while not job.done:
@@ -125,8 +127,9 @@ def test_expansion_job_keeps_the_main_thread_responsive(demo):
 
 def test_cancelled_expansion_job_writes_nothing(demo, tmp_path):
     out = tmp_path / "hdr.ply"
-    req = ExpandRequest(demo.ldr, demo.photo, demo.capture_positions, "pmatch-rgb",
-                        {"face_size": 256}, out_path=str(out), report_path=str(tmp_path / "r.json"))
+    req = ExpandRequest(demo.ldr, demo.photo, demo.capture_positions,
+                        ExpandParams(face_size=256), out_path=str(out),
+                        report_path=str(tmp_path / "r.json"))
     job = start_job(run_expand_request, req, "thread")
     while job.poll().stage not in ("expand", "project", "poisson") and not job.done:
         time.sleep(0.01)
@@ -138,6 +141,36 @@ def test_cancelled_expansion_job_writes_nothing(demo, tmp_path):
 
 
 def test_request_is_immutable(demo):
-    req = ExpandRequest(demo.ldr, demo.photo, demo.capture_positions)
+    req = ExpandRequest(demo.ldr, demo.photo, list(demo.capture_positions))
+    assert isinstance(req.cameras, tuple) and req.method == req.params.method == "pmatch-rgb"
     with pytest.raises(AttributeError):
-        req.method = "landis"
+        req.params = ExpandParams(method="landis")
+    with pytest.raises(TypeError, match="ExpandParams"):
+        ExpandRequest(demo.ldr, demo.photo, demo.capture_positions, {"face_size": 256})
+
+
+def test_request_from_the_viewers_settings():
+    """The viewer's request takes every hdr.* setting (no hand-written settings-to-field map)."""
+    from app.settings import Settings
+    s = Settings()
+    s.set("hdr.threshold_ldr", 0.8)
+    s.set("hdr.method", "landis")
+    s.set("hdr.face_size", 64)
+    req = ExpandRequest.from_settings(None, None, [np.array([0.0, 1.0, 2.0])], s)
+    assert req.params == ExpandParams(threshold_ldr=0.8, method="landis", face_size=64)
+    assert req.cameras == ((0.0, 1.0, 2.0),)
+
+
+def test_expansion_job_in_a_process(demo):
+    """The request and its ExpandParams pickle: the process worker runs the same job."""
+    import pickle
+    from app.cloud import PointCloud
+    small = PointCloud(demo.ldr.positions[::10], demo.ldr.normals[::10],
+                       demo.ldr.colors[::10], False)
+    req = ExpandRequest(small, demo.photo, demo.capture_positions,
+                        ExpandParams(method="landis-pc"), return_cloud=False)
+    assert pickle.loads(pickle.dumps(req)).params == req.params
+    job = start_job(run_expand_request, req, "process")
+    st = job.wait(timeout=120)
+    assert st.state is JobState.DONE, st.error
+    assert job.result.cloud is None and job.result.report["method"] == "landis-pc"

@@ -1,0 +1,131 @@
+"""One HDR expansion as an app.jobs job: the request and its work function.
+
+``ExpandRequest`` is the one request type: ``scanlight expand`` builds it from its options, the
+viewer from its settings (``ExpandRequest.from_settings``), the tests directly. It is immutable
+and picklable, so the same request runs in a thread or in a separate process (app.jobs).
+``run_expand_request`` is the work: it loads what the request names by path, runs the pipeline
+(app.hdr.pipeline, everything in memory) and writes the outputs only on success, atomically, so
+an interrupted or failed run never leaves a half-written cloud or report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app.camera import camera_from_dict
+from app.errors import ScanlightError
+from app.hdr.pipeline import ExpandParams, Expansion, run_expansion
+from app.io.files import read_json, require_file, write_json
+
+
+def load_cameras(path) -> list:
+    """Capture cameras from JSON: a list of ``{"position": [x, y, z]}`` (an axis-aligned cube
+    map there) or full camera objects (with ``look_at``: one rendering with that camera);
+    ``{"cameras": [...]}`` and a single object are accepted too."""
+    p = require_file(path, "cameras", (".json",))
+    data = read_json(p, "cameras")
+    if isinstance(data, dict):
+        data = data.get("cameras", [data])
+    if not isinstance(data, list) or not data:
+        raise ScanlightError(p, "expected a non-empty list of cameras")
+    out = []
+    for i, d in enumerate(data):
+        if isinstance(d, (list, tuple)):
+            d = {"position": d}
+        if not isinstance(d, dict):
+            raise ScanlightError(p, f"camera {i}: expected an object with 'position'")
+        if "look_at" in d:
+            out.append(camera_from_dict(d, f"{p} (camera {i})"))
+            continue
+        pos = d.get("position")
+        try:
+            arr = np.asarray(pos, dtype=np.float64)
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+            raise ScanlightError(p, f"camera {i}: 'position' must be 3 finite numbers, got {pos!r}")
+        out.append(arr)
+    return out
+
+
+@dataclass(frozen=True)
+class ExpandRequest:
+    """Inputs are in-memory objects or file paths (paths are cheaper to send to a process).
+
+    cloud: PointCloud or path; photo: (H, W, 3) linear array or image path; cameras: a sequence
+    of positions / Camera objects or a cameras JSON path; params: the ExpandParams (the method
+    included). out_path / report_path: where the work writes the results (atomically); with
+    ``return_cloud=False`` the result carries only the report (no large pickle back).
+    """
+
+    cloud: object
+    photo: object
+    cameras: object
+    params: ExpandParams = field(default_factory=ExpandParams)
+    out_path: str | None = None
+    report_path: str | None = None
+    return_cloud: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.params, ExpandParams):
+            raise TypeError(f"ExpandRequest.params must be an ExpandParams, not "
+                            f"{type(self.params).__name__} (ExpandParams.from_dict builds one)")
+        if isinstance(self.cameras, list):
+            object.__setattr__(self, "cameras", tuple(self.cameras))
+
+    @property
+    def method(self) -> str:
+        return self.params.method
+
+    @staticmethod
+    def from_settings(cloud, photo, positions, settings, **kw) -> "ExpandRequest":
+        """The viewer's request: its settings (anything indexable by the ``hdr.*`` keys) give
+        the parameters; capture ``positions`` are copied, so later edits do not reach the job."""
+        return ExpandRequest(cloud, photo, tuple(tuple(map(float, p)) for p in positions),
+                             ExpandParams.from_settings(settings), **kw)
+
+
+def run_expand_request(req: ExpandRequest, progress=None, cancel=None) -> Expansion:
+    """The expansion job's work: load what is given as paths, expand, write the outputs.
+
+    Returns app.hdr.result.Expansion (its ``cloud`` None when ``return_cloud`` is False).
+    """
+    from app.io.exr import read_image
+    from app.io.pointcloud import load_cloud, save_cloud
+
+    names = {}
+    cloud = req.cloud
+    if isinstance(cloud, (str, Path)):
+        names["cloud"] = str(cloud)
+        cloud = load_cloud(cloud)
+    photo = req.photo
+    photo_warnings = []
+    if isinstance(photo, (str, Path)):
+        names["photo"] = str(photo)
+        img = read_image(photo)
+        if not img.hdr:
+            photo_warnings.append(f"{photo}: an 8-bit image, not HDR: the expansion cannot "
+                                  "recover radiance above its clipping point")
+        photo = img.rgb
+    cams = req.cameras
+    if isinstance(cams, (str, Path)):
+        names["cameras"] = str(cams)
+        cams = load_cameras(cams)
+    res = run_expansion(cloud, photo, cams, params=req.params, progress=progress, cancel=cancel,
+                        names=names)
+    res.report["warnings"][:0] = photo_warnings
+    res.report["inputs"] = {k: names.get(k) for k in ("cloud", "photo", "cameras")}
+    if req.out_path:
+        save_cloud(res.cloud, req.out_path)
+        res.report["output"] = str(req.out_path)
+    if req.report_path:
+        write_json(req.report_path, res.report)   # atomic; NaN is written as null
+    if not req.return_cloud:
+        res = Expansion(None, res.report, res.labels, [])
+    return res
+
+
+__all__ = ["ExpandRequest", "load_cameras", "run_expand_request"]

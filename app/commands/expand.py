@@ -1,13 +1,135 @@
-"""``scanlight expand``: the HDR expansion pipeline (app/hdr) from the command line."""
+"""``scanlight expand``: HDR-expand an LDR point cloud from one HDR photo (app/hdr).
+
+    scanlight expand --cloud scan.ply --photo photo.exr --cameras capture.json --out hdr.ply
+                     [--report report.json] [--method pmatch-rgb] [--face-size 512]
+                     [--tl 0.9] [--th 1] [--k 16] [--alpha A] [...every hdr.* parameter]
+                     [--params JSON] [--worker thread|process|sync]
+
+The expansion options and their defaults are the parameter table's ``hdr.*`` rows
+(app/params.py, the same as the viewer's; app/commands/options.py maps the flags).
+``--exposure`` is the deprecated spelling of ``--alpha`` (the scan's exposure, not EV).
+``--params`` is a JSON object of more ExpandParams fields (by name or full key); a flag given
+with a value other than its default wins over it.
+
+The expansion runs as an app.jobs job (app.hdr.job: a thread by default, ``--worker process``
+for a separate process); progress goes to stderr; Ctrl-C cancels it. Outputs are written by the
+job only on success, atomically, so an interrupted run never leaves a half-written cloud or
+report.
+"""
 
 from __future__ import annotations
 
+import json
+import sys
+from pathlib import Path
+
+from app.commands.options import add_param_options, param_values
+from app.errors import ScanlightError, UsageError
+from app.params import BY_KEY
+
 
 def add_arguments(parser) -> None:
-    from app.hdr.commands import add_expand_arguments
-    add_expand_arguments(parser)
+    parser.add_argument("--cloud", required=True, help="LDR point cloud (.ply, .pcd, .xyz...)")
+    parser.add_argument("--photo", required=True, help="HDR photo of the scene (.exr), unregistered")
+    parser.add_argument("--cameras", required=True,
+                        help='capture cameras JSON: [{"position": [x, y, z]}, ...] (cube maps) '
+                             "or full camera objects")
+    parser.add_argument("--out", required=True, help="output HDR cloud (.ply, float colours)")
+    parser.add_argument("--report", help="write the report (alpha, counts, timings) as JSON here")
+    parser.add_argument("--params", metavar="JSON",
+                        help="ExpandParams fields as a JSON object, e.g. "
+                             "'{\"pm_iterations\": 6}' or '{\"pm_scale_tolerance\": null}' "
+                             "(null: not set); a flag given with another value wins")
+    parser.add_argument("--worker", choices=("thread", "process", "sync"), default="thread",
+                        help="where the job runs (default thread)")
+    add_param_options(parser, "expand")
+
+
+def expand_params(args):
+    """The ExpandParams of the command line: the table's defaults, then ``--params``, then the
+    flags given with a non-default value; a bad value is one line naming the flag (exit 2)."""
+    from app.hdr.pipeline import ExpandParams
+
+    values = param_values(args, "expand")
+    extra = {}
+    if args.params:
+        try:
+            extra = json.loads(args.params)
+        except json.JSONDecodeError as exc:
+            raise UsageError(None, f"--params is not valid JSON ({exc})") from None
+        if not isinstance(extra, dict):
+            raise UsageError(None, "--params must be a JSON object")
+    flags = {key: v for key, v in values.items() if v != BY_KEY[key].default}
+    try:
+        return ExpandParams.from_dict({**values, **extra, **flags})
+    except ScanlightError as err:
+        raise UsageError(None, f"--params: {err.reason}" if extra else err.reason) from None
+
+
+class _StderrProgress:
+    """One line per stage and per 10% on stderr (no carriage-return tricks: logs stay readable)."""
+
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stderr
+        self.stage = None
+        self.step = -1
+
+    def __call__(self, fraction: float, stage: str) -> None:
+        step = int(fraction * 10)
+        if stage != self.stage or step > self.step:
+            self.stage, self.step = stage, step
+            print(f"expand: {fraction:4.0%} {stage}", file=self.stream, flush=True)
 
 
 def run(args) -> int:
-    from app.hdr.commands import run_expand
-    return run_expand(args)
+    from app.hdr.job import ExpandRequest, load_cameras, run_expand_request
+    from app.io.files import require_file
+    from app.jobs import Job, JobState
+
+    params = expand_params(args)
+    out = Path(args.out)
+    if out.suffix.lower() != ".ply":
+        raise UsageError(None, f"--out must be a .ply file, got {out}")
+    # check the inputs here, so bad input fails before a worker starts
+    require_file(args.cloud, "point cloud")
+    require_file(args.photo, "photo")
+    load_cameras(args.cameras)
+    req = ExpandRequest(args.cloud, args.photo, args.cameras, params, str(out), args.report,
+                        return_cloud=False)
+    show = _StderrProgress()
+    job = Job(run_expand_request, req, args.worker)
+    job.start()
+    shown = 0
+    try:
+        while True:
+            st = job.wait(timeout=0.2)
+            for f, stage in job.history[shown:]:
+                show(f, stage)
+            shown = len(job.history)
+            if job.done:
+                break
+    except KeyboardInterrupt:
+        job.cancel()
+        job.wait(timeout=job.kill_after + 1)
+        raise
+    if st.state is JobState.FAILED:
+        if isinstance(job.error, ScanlightError):
+            raise job.error
+        raise RuntimeError(str(job.error))
+    if st.state is JobState.CANCELLED:
+        print("expand: cancelled; nothing written", file=sys.stderr)
+        return 130
+    rep = job.result.report
+    for w in rep.get("warnings", []):
+        print(f"expand: warning: {w}", file=sys.stderr)
+    c = rep["counts"]
+    alpha = rep.get("alpha")
+    print(f"expanded {c['points']} points ({params.method}): {c['overexposed']} overexposed, "
+          f"{c['expanded_by_projection']} by projection, {c['filled_by_poisson']} by Poisson, "
+          f"{c['unresolved']} unresolved; alpha = "
+          f"{'n/a' if alpha is None else f'{alpha:.4g}'}; "
+          f"{rep['timings']['seconds_total']:.1f} s -> {out}")
+    return 0
+
+
+__all__ = ["add_arguments", "run", "expand_params"]

@@ -60,8 +60,9 @@ def _help(p: Param) -> str:
     default = "not set" if p.default is None else p.default
     rng = p.range_text()
     unit = f" {p.unit}" if p.unit else ""
-    return f"{p.help} (default {default}{unit}" + (f"; {rng}" if rng and p.kind != "choice"
-                                                     else "") + ")"
+    text = f"{p.help} (default {default}{unit}" + (f"; {rng}" if rng and p.kind != "choice"
+                                                   else "") + ")"
+    return text.replace("%", "%%")     # argparse %-formats help (hdr.l_max_percentile is in %)
 
 
 def _typed(p: Param):
@@ -101,6 +102,8 @@ def add_param_options(parser, command: str) -> None:
               "help": _help(p)}
         if p.kind == "choice":
             kw["choices"] = p.choices
+        elif p.kind == "bool":
+            kw["metavar"] = "BOOL"
         elif p.kind in ("int", "float"):
             kw["metavar"] = p.unit.upper() if p.unit.isalpha() and len(p.unit) <= 3 else \
                 p.name.upper()
@@ -109,7 +112,7 @@ def add_param_options(parser, command: str) -> None:
         key = COMMAND_FLAGS[command][new]
         parser.add_argument(old, dest=_dest(key), type=_typed(BY_KEY[key]), action=_Deprecated,
                             new_flag=new, default=argparse.SUPPRESS,
-                            help=f"deprecated spelling of {new}")
+                            metavar=new.lstrip("-").upper(), help=f"deprecated spelling of {new}")
 
 
 def param_values(args, command: str) -> dict:

@@ -1,4 +1,4 @@
-"""`scanlight expand` / `scanlight evaluate expansion` through their add_*/run_* functions."""
+"""`scanlight expand` / `scanlight evaluate expansion` through their add_*/run functions."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import json
 import numpy as np
 import pytest
 
+from app.commands import evaluate, expand
 from app.errors import ScanlightError, UsageError
-from app.hdr import commands
+from app.hdr.job import load_cameras
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +34,7 @@ def _parse(add, argv):
 
 
 def _expand_args(root, *extra):
-    return _parse(commands.add_expand_arguments,
+    return _parse(expand.add_arguments,
                   ["--cloud", str(root / "ldr.ply"), "--photo", str(root / "photo.exr"),
                    "--cameras", str(root / "cams.json"), "--out", str(root / "hdr.ply"),
                    "--report", str(root / "report.json"), "--face-size", "128", *extra])
@@ -41,7 +42,7 @@ def _expand_args(root, *extra):
 
 def test_expand_writes_cloud_and_report_then_evaluate_scores_it(files, capsys):
     root, d = files
-    assert commands.run_expand(_expand_args(root)) == 0
+    assert expand.run(_expand_args(root)) == 0
     err = capsys.readouterr().err
     assert "expand:" in err and "100%" in err                    # progress on stderr
     rep = json.loads((root / "report.json").read_text())
@@ -53,11 +54,11 @@ def test_expand_writes_cloud_and_report_then_evaluate_scores_it(files, capsys):
     hdr = load_cloud(root / "hdr.ply")
     assert hdr.hdr and hdr.colors.max() > 5.0                    # float colours above 1 survive
 
-    ev = _parse(commands.add_evaluate_arguments,
+    ev = _parse(evaluate.add_expansion_arguments,
                 ["--cloud", str(root / "hdr.ply"), "--gt", str(root / "gt.ply"),
                  "--ldr", str(root / "ldr.ply"), "--json", str(root / "eval.json"),
                  "--renderer", "classic", "--render-size", "40"])
-    assert commands.run_evaluate_expansion(ev) == 0
+    assert evaluate.run_expansion(ev) == 0
     out = capsys.readouterr().out
     assert "point RMS" in out and "relit-render error: render_rms" in out
     m = json.loads((root / "eval.json").read_text())
@@ -95,7 +96,7 @@ def test_missing_and_bad_inputs_are_one_line_errors(files, tmp_path):
     args = _expand_args(root)
     args.cloud = str(tmp_path / "nope.ply")
     with pytest.raises(ScanlightError, match="nope.ply"):
-        commands.run_expand(args)
+        expand.run(args)
     bad = tmp_path / "cams.json"
     for text, phrase in [("{not json", "not valid JSON"), ("[]", "non-empty"),
                          ('[{"position": [1, 2]}]', "3 finite numbers")]:
@@ -103,12 +104,30 @@ def test_missing_and_bad_inputs_are_one_line_errors(files, tmp_path):
         args = _expand_args(root)
         args.cameras = str(bad)
         with pytest.raises(ScanlightError, match=phrase) as exc:
-            commands.run_expand(args)
+            expand.run(args)
         assert str(bad) in str(exc.value)
     with pytest.raises(UsageError, match="--tl"):
-        commands.run_expand(_expand_args(root, "--tl", "2"))
-    with pytest.raises(ScanlightError, match="unknown expansion parameter"):
-        commands.run_expand(_expand_args(root, "--params", '{"nope": 1}'))
+        expand.run(_expand_args(root, "--tl", "2"))
+    with pytest.raises(UsageError, match="--params: unknown ExpandParams field 'nope'"):
+        expand.run(_expand_args(root, "--params", '{"nope": 1}'))
+    with pytest.raises(UsageError, match="--params: .*'pm_levels' must be in"):
+        expand.run(_expand_args(root, "--params", '{"pm_levels": 99}'))
+
+
+def test_expand_options_come_from_the_table(files):
+    """Defaults are the table's (face size 512, as in the viewer); --params fills in fields,
+    a flag given with another value wins over it; --exposure is --alpha, deprecated."""
+    from app.hdr.pipeline import ExpandParams
+    root, _ = files
+    p = _parse(expand.add_arguments, ["--cloud", "c", "--photo", "p", "--cameras", "j",
+                                      "--out", "o.ply"])
+    assert expand.expand_params(p) == ExpandParams()
+    args = _expand_args(root, "--k", "8", "--th", "2", "--method", "landis",
+                        "--params", '{"pm_iterations": 6, "hdr.neighbours": 4, "seed": 7}')
+    assert expand.expand_params(args) == ExpandParams(
+        face_size=128, neighbours=8, threshold_ssd=2.0, method="landis", pm_iterations=6,
+        seed=7)
+    assert expand.expand_params(_expand_args(root, "--exposure", "0.25")).alpha == 0.25
 
 
 def test_failed_run_leaves_no_output(files, tmp_path):
@@ -120,7 +139,7 @@ def test_failed_run_leaves_no_output(files, tmp_path):
     args.photo, args.out = str(tmp_path / "black.exr"), str(tmp_path / "out.ply")
     args.report = str(tmp_path / "rep.json")
     with pytest.raises(ScanlightError, match="all black") as exc:
-        commands.run_expand(args)
+        expand.run(args)
     assert "black.exr" in str(exc.value)
     assert list(tmp_path.iterdir()) == [tmp_path / "black.exr"]
 
@@ -130,6 +149,6 @@ def test_load_cameras_accepts_positions_and_full_cameras(tmp_path):
     p.write_text(json.dumps({"cameras": [[0, 1, 2], {"position": [1, 1, 1]},
                                          {"position": [0, 1, 0], "look_at": [0, 1, -1],
                                           "width": 64, "height": 32}]}))
-    cams = commands.load_cameras(p)
+    cams = load_cameras(p)
     assert np.allclose(cams[0], [0, 1, 2]) and np.allclose(cams[1], [1, 1, 1])
     assert cams[2].width == 64 and cams[2].height == 32

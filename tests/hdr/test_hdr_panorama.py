@@ -9,7 +9,7 @@ import pytest
 
 from app.color import luminance
 from app.hdr.evaluate import expansion_errors
-from app.hdr.panorama_scene import direction_to_uv, panorama_scene, sample_panorama
+from app.bench.panorama_rooms import direction_to_uv, panorama_room, sample_panorama
 from app.hdr.pipeline import ExpandParams, run_expansion
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
@@ -38,7 +38,7 @@ def test_sampling_the_panorama_in_pixel_directions_returns_the_pixels(apartment)
 
 
 def test_pmatch_beats_ldr_and_itmos_on_the_apartment_panorama(apartment):
-    sc = panorama_scene(apartment, 40_000)
+    sc = panorama_room(apartment, 40_000)
     over = luminance(sc.ldr.colors) > 0.9
     assert 0.02 < over.mean() < 0.1
     err = {}

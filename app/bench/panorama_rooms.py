@@ -1,4 +1,6 @@
-"""A test scene made from a real HDR panorama (../shared/data/*.exr, see its README).
+"""Test rooms made from real HDR panoramas (../shared/data/*.exr, see its README), for the
+expansion's tests and benchmarks: unlike the demo room, their light is measured, not modelled.
+Not part of the application (nothing in app/ outside app/bench imports it).
 
 The panorama is mapped onto a box room around the capture centre: every wall point gets the
 panorama's radiance in its direction from the centre (that is the ground truth). The LDR scan
@@ -76,7 +78,7 @@ def brightest_direction(pano: np.ndarray) -> np.ndarray:
     return np.array([np.cos(lat) * np.sin(lon), np.sin(lat), -np.cos(lat) * np.cos(lon)])
 
 
-def panorama_scene(pano: np.ndarray, n_points: int = 50_000, seed: int = 0,
+def panorama_room(pano: np.ndarray, n_points: int = 50_000, seed: int = 0,
                    photo_offset_deg: tuple[float, float] = (20.0, -10.0), photo_fov: float = 75.0,
                    photo_size: tuple[int, int] = (384, 256),
                    capture_offset=(0.35, -0.15, 0.25), clip_percentile: float = 97.0) -> DemoScene:

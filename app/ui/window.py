@@ -266,14 +266,15 @@ class ViewerWindow:
 
     # -- HDR expansion ---------------------------------------------------------------------------
     def start_expansion(self, synchronous: bool = False) -> None:
-        from app.ui.hdr_task import ExpansionRequest, ExpansionTask
+        from app.hdr.job import ExpandRequest
+        from app.ui.hdr_task import ExpansionTask
         e, s = self.engine, self.session
         if e.photo is None:
             raise ScanlightError(None, "open an HDR photo first (Scene panel, or drop an .exr)")
         if not s.capture_cameras:
             raise ScanlightError(None, "add a capture camera first (Capture cameras panel)")
-        req = ExpansionRequest.from_settings(e.cloud.ldr, e.photo,
-                                             [c.position for c in s.capture_cameras], s.settings)
+        req = ExpandRequest.from_settings(e.cloud.ldr, e.photo,
+                                          [c.position for c in s.capture_cameras], s.settings)
         self.hdr_task = ExpansionTask(req, synchronous=synchronous)
         self.hdr_report = None
 

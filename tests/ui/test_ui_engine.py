@@ -220,11 +220,11 @@ def test_session_round_trip_renders_the_same_image(ctx, renders, tmp_path):
 
 
 def _expansion_request(e, face=64):
-    from app.ui.hdr_task import ExpansionRequest
+    from app.hdr.job import ExpandRequest
     e.session.settings.set("hdr.face_size", face)
-    return ExpansionRequest.from_settings(e.cloud.ldr, e.photo,
-                                          [c.position for c in e.session.capture_cameras],
-                                          e.session.settings)
+    return ExpandRequest.from_settings(e.cloud.ldr, e.photo,
+                                       [c.position for c in e.session.capture_cameras],
+                                       e.session.settings)
 
 
 def test_expansion_switches_the_room_to_hdr(ctx, renders):

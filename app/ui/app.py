@@ -5,6 +5,9 @@ drawn exactly as in the window (same passes, same size), without the imgui panel
 is always taken once the progressive refinement has finished, so batch images do not depend on
 how fast the machine is. A UI script (env SCANLIGHT_UI_SCRIPT=file.py with
 ``on_frame(viewer, frame_index)``) can drive either mode; tests use it.
+
+Both viewers pass the renderer the viewer ships, ``app.pbgi.renderer.Relighter``, to their
+engine (``relighter=``; tests inject theirs the same way).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import sys
 
 from app.camera import parse_size as camera_parse_size
 from app.errors import ScanlightError, UsageError
+from app.pbgi.renderer import Relighter
 from app.settings import Session, load_last_session, load_session
 
 log = logging.getLogger(__name__)
@@ -39,12 +43,12 @@ def open_session(args) -> Session:
 class OffscreenViewer:
     """The window's frame loop without a window (same engine, same drawing)."""
 
-    def __init__(self, session: Session, size, script=None):
+    def __init__(self, session: Session, size, script=None, *, relighter=Relighter):
         from app.render.context import get_context
         from app.ui.engine import ViewerEngine
         self.ctx = get_context()
         self.session = session
-        self.engine = ViewerEngine(self.ctx, session, size=size)
+        self.engine = ViewerEngine(self.ctx, session, size=size, relighter=relighter)
         self.script = script
         self.frame_index = 0
         self.quit_requested = False
@@ -89,10 +93,10 @@ def run_viewer(args) -> int:
         raise UsageError(None, f"--frames must be >= 0, got {frames}")
     shot = getattr(args, "screenshot", None)
     if getattr(args, "offscreen", False):
-        return OffscreenViewer(session, size, script).run(frames, shot)
+        return OffscreenViewer(session, size, script, relighter=Relighter).run(frames, shot)
     try:
         from app.ui.window import ViewerWindow
-        viewer = ViewerWindow(session, size, script)
+        viewer = ViewerWindow(session, size, script, relighter=Relighter)
     except ScanlightError:
         raise
     except Exception as exc:  # no usable display / GL 4.3: say so in one line

@@ -2,22 +2,33 @@
 draws one frame. No imgui here: the window (app/ui/app.py) and the offscreen runner both drive
 this class, so batch screenshots are what the window shows.
 
-Each frame ``frame()`` takes the session's change set and decides what to redo:
+The renderer is injected: ``ViewerEngine(ctx, session, size, relighter=...)`` takes a relighter
+(anything with the ``app.pbgi.renderer.Relighter`` interface) or a factory ``f(ctx=...)`` making
+one. The window and the offscreen runner pass the real ``Relighter``; tests pass theirs the same
+way. A factory that raises leaves the viewer running: the reason is a message, and the asset
+shows the "renderer unavailable" placeholder.
 
-    files.cloud, files.hdr_cloud   reload the scan; new splats; Relighter.set_cloud
+Each frame ``frame()`` takes the session's change set and dispatches it to the handlers
+connected in ``_connect_handlers`` (``app.settings.ChangeHandlers``), in this order:
+
+    files.cloud, files.hdr_cloud   reload the scan (and photo); new splats; Relighter.set_cloud
+    files.photo (alone)            reload the photo
     view.cloud                     new splat colours; relight with that cloud (cheap set_cloud)
     files.asset                    load the mesh; new G-buffer geometry; Relighter.set_asset
     asset.transform                re-place the mesh (no reload); set_asset
-    materials, pbgi.*              re-gather only (uniforms / parameters)
-    view.exposure, view.tonemap    composite only
-    camera (any move), view.fov_y  redraw room and G-buffer, re-gather
+    view.fov_y                     the navigator's field of view
+    camera                         the navigator follows the session's camera
+    materials                      re-gather only (uniforms)
+    table parameters by their ``Param.redo`` (app/params.py): "room" redraws the splats, "gi"
+    re-gathers, "display" re-composites; "job" and "none" redo nothing here.
+
+A camera move (any navigation, or the field of view) redraws the room and G-buffer and
+re-gathers; ``frame()`` finds it by comparing cameras, not through the change set.
 """
 
 from __future__ import annotations
 
-import importlib
 import logging
-import os
 import time
 from dataclasses import dataclass, field
 
@@ -25,8 +36,9 @@ import numpy as np
 
 from app.camera import Camera
 from app.errors import ScanlightError
+from app.pbgi.renderer import RenderParams
 from app.pbgi.stats import RenderStats
-from app.settings import Session
+from app.settings import ChangeHandlers, Session
 from app.ui.navigation import ViewNavigator
 from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect
 from app.ui.scene import Asset, Cloud, copy_materials, load_cloud_files
@@ -34,10 +46,9 @@ from app.ui.viewport import ViewportRenderer
 
 log = logging.getLogger(__name__)
 
-RELIGHTER_ENV = "SCANLIGHT_RELIGHTER"   # "module:Class", a test seam; default the PBGI renderer
-DEFAULT_RELIGHTER = "app.pbgi.renderer:Relighter"
-GI_KEYS_PREFIX = ("pbgi.",)
-NO_GI_KEYS = {"pbgi.frame_budget_ms"}
+# the session-document keys whose change re-composites the whole picture (room pass included)
+RECOMPOSITE_KEYS = ("files.cloud", "files.hdr_cloud", "files.photo", "files.asset",
+                    "asset.transform", "camera", "view.cloud", "view.fov_y")
 
 
 @dataclass
@@ -47,15 +58,12 @@ class Message:
     time: float = field(default_factory=time.time)
 
 
-def load_relighter():
-    """(Relighter class, RenderParams class, None) or (None, None, reason) when not available."""
-    spec = os.environ.get(RELIGHTER_ENV) or DEFAULT_RELIGHTER
-    module, _, name = spec.partition(":")
-    try:
-        mod = importlib.import_module(module)
-        return getattr(mod, name), mod.RenderParams, None
-    except Exception as exc:  # missing module, or a broken one: the viewer still runs
-        return None, None, f"{type(exc).__name__}: {exc}"
+def make_relighter(relighter, ctx):
+    """The relighter itself when given one, else what the factory ``relighter(ctx=ctx)`` makes.
+    A class is a factory (``Relighter`` is passed as its own factory)."""
+    if hasattr(relighter, "render") and not isinstance(relighter, type):
+        return relighter
+    return relighter(ctx=ctx)
 
 
 def text_image(text: str, scale: int = 2) -> np.ndarray:
@@ -72,7 +80,7 @@ def text_image(text: str, scale: int = 2) -> np.ndarray:
 
 
 class ViewerEngine:
-    def __init__(self, ctx, session: Session, size=(960, 600)):
+    def __init__(self, ctx, session: Session, size=(960, 600), *, relighter):
         self.ctx = ctx
         self.session = session
         self.size = tuple(int(v) for v in size)
@@ -84,7 +92,7 @@ class ViewerEngine:
         self.asset: Asset | None = None
         self.mesh = None
         self.relighter = None
-        self.render_params_cls = None
+        self.render_params_cls = RenderParams
         self.relighter_error: str | None = None
         self._lit_cloud = None
         self.gi = ProgressiveGI(self._render_gi)
@@ -98,8 +106,10 @@ class ViewerEngine:
         self._asset_dirty = True
         self._gi_dirty = True
         self.nav = ViewNavigator(fov_y_deg=session.settings["view.fov_y"])
+        self.changes = ChangeHandlers()
+        self._connect_handlers()
         self._init_camera()
-        self._load_relighter()
+        self._start_relighter(relighter)
         self.load_cloud()
         self.load_asset()
 
@@ -132,16 +142,11 @@ class ViewerEngine:
             self.nav = ViewNavigator.from_camera(default_views()["whole"])
             self.nav.fov_y_deg = s.settings["view.fov_y"]
 
-    def _load_relighter(self) -> None:
-        cls, params, err = load_relighter()
-        if cls is None:
-            self.relighter_error = err
-            log.info("relighting renderer unavailable: %s", err)
-            return
+    def _start_relighter(self, relighter) -> None:
+        """Take the injected relighter (or make it); a failure leaves the viewer without one."""
         try:
-            self.relighter = cls(ctx=self.ctx)
-            self.render_params_cls = params
-        except Exception as exc:
+            self.relighter = make_relighter(relighter, self.ctx)
+        except Exception as exc:  # a missing module, no compute shaders, ...: the viewer runs on
             self.relighter_error = f"{type(exc).__name__}: {exc}"
             self.error(f"relighting renderer failed to start: {self.relighter_error}")
 
@@ -235,38 +240,64 @@ class ViewerEngine:
             self.view.resize(*self.size)
             self._room_dirty = self._gi_dirty = True
 
+    # -- change handlers -------------------------------------------------------------------------
+    def _connect_handlers(self) -> None:
+        """Who handles which change key. The connection order is the order of the work: the
+        room before its colours, the asset before its placement, the field of view before the
+        session camera (which carries its own)."""
+        c = self.changes
+        c.connect(("files.cloud", "files.hdr_cloud", "files.photo"), self._on_room_files)
+        c.connect("view.cloud", self._on_cloud_colors)
+        c.connect(("files.asset", "asset.transform"), self._on_asset)
+        c.connect("view.fov_y", self._on_fov)
+        c.connect("camera", self._on_camera)
+        c.connect("materials", self._redo_gi)
+        c.connect(RECOMPOSITE_KEYS, self._redo_composite)
+        # table parameters: what a change invalidates is their Param.redo (app/params.py)
+        c.connect_redo("room", self._redo_room)
+        c.connect_redo("gi", self._redo_gi)
+        c.connect_redo("display", self._redo_composite)
+
     def apply_changes(self) -> frozenset:
+        """Hand the session's change set to the handlers; returns it."""
         changes = self.session.settings.take_changes()
-        if not changes:
-            return changes
-        s = self.session.settings
-        if changes & {"files.cloud", "files.hdr_cloud", "files.photo"}:
-            if changes & {"files.cloud", "files.hdr_cloud"}:
-                self._lit_cloud = None
-                self.load_cloud()
-            elif self.session.photo:
-                photo = self.guard("opening the photo", self._load_photo)
-                if photo is not None:
-                    self.photo = photo
-        if "view.cloud" in changes:
-            self._apply_colors()
-        if "files.asset" in changes:
-            self.load_asset()
-        elif "asset.transform" in changes:
-            self.place_asset()
-        if "view.fov_y" in changes:
-            self.nav.fov_y_deg = s["view.fov_y"]
-        if "view.splat_scale" in changes:
-            self._room_dirty = True
-        if "camera" in changes and self.session.camera is not None:
-            self.nav = ViewNavigator.from_camera(self.session.camera)
-        if "materials" in changes or any(k.startswith(GI_KEYS_PREFIX) and k not in NO_GI_KEYS
-                                         for k in changes):
-            self._gi_dirty = True
-        if any(not (k == "materials" or k.startswith("pbgi.") or k == "capture_cameras")
-               for k in changes):
-            self._composite_dirty = True
+        if changes:
+            self.changes.dispatch(changes)
         return changes
+
+    def _on_room_files(self, keys) -> None:
+        if keys & {"files.cloud", "files.hdr_cloud"}:
+            self._lit_cloud = None
+            self.load_cloud()       # the photo comes with the scan
+        elif self.session.photo:
+            photo = self.guard("opening the photo", self._load_photo)
+            if photo is not None:
+                self.photo = photo
+
+    def _on_cloud_colors(self, keys) -> None:
+        self._apply_colors()
+
+    def _on_asset(self, keys) -> None:
+        if "files.asset" in keys:
+            self.load_asset()       # places it too
+        else:
+            self.place_asset()
+
+    def _on_fov(self, keys) -> None:
+        self.nav.fov_y_deg = self.session.settings["view.fov_y"]
+
+    def _on_camera(self, keys) -> None:
+        if self.session.camera is not None:
+            self.nav = ViewNavigator.from_camera(self.session.camera)
+
+    def _redo_room(self, keys) -> None:
+        self._room_dirty = self._composite_dirty = True
+
+    def _redo_gi(self, keys) -> None:
+        self._gi_dirty = True
+
+    def _redo_composite(self, keys) -> None:
+        self._composite_dirty = True
 
     def _load_photo(self):
         from app.ui.scene import load_photo
@@ -474,4 +505,4 @@ def default_session() -> Session:
     return s
 
 
-__all__ = ["ViewerEngine", "default_session", "load_relighter"]
+__all__ = ["ViewerEngine", "default_session", "make_relighter"]

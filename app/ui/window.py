@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import ScanlightError
+from app.pbgi.renderer import Relighter
 from app.settings import Session, save_last_session
 from app.ui.engine import ViewerEngine
 
@@ -45,7 +46,11 @@ def load_script(path: str):
 
 
 class ViewerWindow:
-    def __init__(self, session: Session, size=(1280, 800), script=None, title="Scanlight"):
+    """``relighter`` is a factory ``f(ctx=...)`` (the window makes one relighter per session it
+    opens)."""
+
+    def __init__(self, session: Session, size=(1280, 800), script=None, title="Scanlight", *,
+                 relighter=Relighter):
         import moderngl_window as mglw
         from imgui_bundle import imgui
         from moderngl_window.conf import settings
@@ -66,7 +71,9 @@ class ViewerWindow:
         imgui.get_io().set_ini_filename("")
         imgui.style_colors_dark()
         self.imgui = ModernglWindowRenderer(self.wnd)
-        self.engine = ViewerEngine(self.ctx, session, size=self.wnd.buffer_size)
+        self.relighter_factory = relighter
+        self.engine = ViewerEngine(self.ctx, session, size=self.wnd.buffer_size,
+                                   relighter=relighter)
         self.session = session
         self.dialog = FileDialog()
         self.script = script
@@ -225,7 +232,8 @@ class ViewerWindow:
             self.hdr_task.cancel()
         old_engine = self.engine
         self.session = new
-        self.engine = ViewerEngine(self.ctx, new, size=self.wnd.buffer_size)
+        self.engine = ViewerEngine(self.ctx, new, size=self.wnd.buffer_size,
+                                   relighter=self.relighter_factory)
         old_engine.release()
         self.selected_capture = 0 if new.capture_cameras else -1
         self.capture_texture = self.photo_texture = None

@@ -35,10 +35,7 @@ class RenderCall:
 
 
 def spy_renders(monkeypatch) -> list[RenderCall]:
-    """Record every call of the real Relighter.render (what it computes is untouched).
-
-    Also makes sure the viewer loads the real renderer (no SCANLIGHT_RELIGHTER override)."""
-    monkeypatch.delenv("SCANLIGHT_RELIGHTER", raising=False)
+    """Record every call of the real Relighter.render (what it computes is untouched)."""
     from app.pbgi.renderer import Relighter
     real = Relighter.render
     calls: list[RenderCall] = []

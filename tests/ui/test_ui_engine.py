@@ -11,13 +11,15 @@ import pytest
 
 from tests.support.viewer import small_session
 
+from app.pbgi.renderer import Relighter
 from app.render.splat import near_far
 from app.ui import composite
 from app.ui.engine import ViewerEngine
 
 
-def make_engine(ctx, size=(96, 72), session=None):
-    return ViewerEngine(ctx, session or small_session(), size=size)
+def make_engine(ctx, size=(96, 72), session=None, relighter=Relighter):
+    """The engine with the renderer injected as the window does (the real one by default)."""
+    return ViewerEngine(ctx, session or small_session(), size=size, relighter=relighter)
 
 
 def twin(e: ViewerEngine) -> np.ndarray:
@@ -102,6 +104,36 @@ def test_changes_redo_only_what_depends_on_them(ctx, renders):
     assert renders[-1].size[0] < full.width and e.gi.refining     # reduced resolution, pending
 
 
+def test_each_change_key_has_its_handler(ctx, renders):
+    """Table parameters reach the handler of their Param.redo (a new parameter needs no engine
+    edit); document keys have their own handlers, connected in the order of the work; keys
+    that only matter to the next job redo nothing. The renderer injected as an instance is the
+    one the engine uses."""
+    from app.params import PARAMS
+    relighter = Relighter(ctx=ctx)
+    e = make_engine(ctx, relighter=relighter)
+    assert e.relighter is relighter
+    redo = {"gi": e._redo_gi, "room": e._redo_room, "display": e._redo_composite}
+    for p in PARAMS:
+        handlers = e.changes.handlers_for(p.key)
+        assert (redo[p.redo] in handlers) if p.redo in redo else not handlers, p.key
+    order = [h.__name__ for _, h in e.changes]
+    assert order[:6] == ["_on_room_files", "_on_cloud_colors", "_on_asset", "_on_fov",
+                         "_on_camera", "_redo_gi"]
+    assert e.changes.handlers_for("materials") == [e._redo_gi]
+    assert e.changes.handlers_for("capture_cameras") == []
+    e.frame()
+    e.finish_refinement()
+    n = len(renders)
+    s = e.session.settings
+    s.set("hdr.bins", 64)
+    s.set("pbgi.frame_budget_ms", 120.0)
+    s.set("view.fly_speed", 3.0)
+    assert e.apply_changes() == {"hdr.bins", "pbgi.frame_budget_ms", "view.fly_speed"}
+    info = e.frame()
+    assert len(renders) == n and not info["room"] and not info["gi"]
+
+
 def test_stats_skip_tiles_outside_the_silhouette(ctx, renders):
     """The PBGI panel shows the last gather that had receivers, not the zeros of an empty
     corner tile; a new mode shows at once even from an empty tile."""
@@ -133,12 +165,19 @@ def test_screenshot_png_is_the_tone_mapped_exr(ctx, renders, tmp_path):
     assert np.abs(png.astype(int) - expect.astype(int)).max() <= 1
 
 
-def test_missing_renderer_shows_a_placeholder_not_a_crash(ctx, monkeypatch):
-    monkeypatch.setenv("SCANLIGHT_RELIGHTER", "app.pbgi.no_such_renderer:Relighter")
-    e = make_engine(ctx, (160, 120))
+def test_missing_renderer_shows_a_placeholder_not_a_crash(ctx):
+    """A renderer that cannot start (here: its module is missing) is a message in the window,
+    the asset shows the hatch with a label, and the viewer keeps running."""
+    import importlib
+
+    def missing_renderer(ctx):
+        return importlib.import_module("app.pbgi.no_such_renderer").Relighter(ctx=ctx)
+    e = make_engine(ctx, (160, 120), relighter=missing_renderer)
     for _ in range(3):
         e.frame()
     assert not e.renderer_available and "no_such_renderer" in e.relighter_error
+    assert any("renderer failed to start" in m.text and "no_such_renderer" in m.text
+               for m in e.messages)
     lin = e.view.read_linear()
     asset = lin[..., 3] > 0
     assert asset.sum() > 200

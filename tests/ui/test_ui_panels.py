@@ -32,8 +32,9 @@ def ui(ctx, monkeypatch):
     from app.ui.engine import ViewerEngine
     from app.ui.filedialog import FileDialog
     from app.ui.window import ViewerWindow
+    from app.pbgi.renderer import Relighter
     calls = spy_renders(monkeypatch)           # the real renderer, micro-buffer 8
-    engine = ViewerEngine(ctx, small_session(), size=(900, 600))
+    engine = ViewerEngine(ctx, small_session(), size=(900, 600), relighter=Relighter)
     engine.frame()
     assert calls and engine.renderer_available and engine.gi_stats.completed
     w = ViewerWindow.__new__(ViewerWindow)          # the window's state without a window

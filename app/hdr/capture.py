@@ -1,8 +1,7 @@
 """Cube-map captures of the LDR cloud by point splatting, with depth (paper Section 4.1, "Capture").
 
 The renderer is a numpy z-buffer splatter rather than GL: it is deterministic and needs no GL
-context, so it runs in a worker thread or process beside the viewer (measured: 1M points into
-four 1024^2 faces in about 5 s on the 2-core machine; a GL version was not tried). Each point
+context, so it runs in a worker thread or process beside the viewer. Each point
 covers the pixels whose centres lie within its world radius projected to the face (a disc), so the
 rendering has no holes where the cloud is dense enough; the colour of a pixel is the weighted mean
 of the splats within a depth tolerance of the nearest one (a soft z-buffer), which anti-aliases

@@ -14,9 +14,10 @@ Patch distance: sum over the patch samples (a (2r+1)^2 grid, or every ``stride``
 channels of squared differences, scaled to a dense 7x7 patch (so the paper's threshold th = 1
 means the same whatever the sampling: an RMS difference of 0.14 per value in luminance, 0.08 in
 RGB);
-B is sampled at the nearest pixel (bilinear=True: interpolated, 4x slower, no better in our
-tests), clamped to the border: a lamp cut by the photo's frame is taken to continue beyond it
-(penalising outside samples left the cut-off part of the demo's ceiling lamp unmatched).
+B is sampled at the nearest pixel (bilinear=True: interpolated, several times slower and no
+better in our tests), clamped to the border: a lamp cut by the photo's frame is taken to
+continue beyond it (penalising outside samples left the cut-off part of the demo's ceiling lamp
+unmatched).
 """
 
 from __future__ import annotations
@@ -90,7 +91,8 @@ class _Matcher:
         self.u = np.array([o[0] for o in offs], dtype=np.float32)[:, None]
         self.v = np.array([o[1] for o in offs], dtype=np.float32)[:, None]
         # per pixel block and channel, (P, block): the A patch samples, fixed for the whole search;
-        # blocks of CHUNK pixels keep the (P, block) temporaries in cache (2.7x faster than whole)
+        # blocks of CHUNK pixels keep the (P, block) temporaries in cache (faster than
+        # whole-image arrays)
         n = self.h * self.w
         planes = [np.stack([pad[r + v:r + v + self.h, r + u:r + u + self.w, ch].ravel()
                             for u, v in offs]).astype(np.float32) for ch in range(a.shape[2])]

@@ -11,14 +11,14 @@ touches a point with a value, so conjugate gradients apply. Components with no b
 neighbour outside Omega) have no HDR information at all and a singular matrix: they are left out
 of the solve and keep their LDR colour (``unresolved``), never NaN.
 
-Solvers (measured in app/bench/expand.py --poisson-stress): "cg", Jacobi-preconditioned conjugate
-gradients on all channels at once, written here with einsum reductions: scipy's cg spends most
-of its time in BLAS dot products, which the multi-threaded OpenBLAS makes 5-10x slower on this
-shared 2-core machine; and "direct" (sparse LU, scipy.sparse.linalg.splu, one factorisation for
-the three channels). Measured on the 1M-point room (k = 16, three channels), LU is faster at
-every size tried: 38k unknowns 1.1 s vs 1.3 s, 150k 3.7 s vs 6.9 s, 545k 32 s vs 46 s. But a
-factorisation cannot be interrupted, so "auto" (the default) uses LU up to DIRECT_MAX unknowns
-(about 2 s) and CG, which checks the cancel flag every 16 iterations, above.
+Solvers (compared by ``scanlight bench expand --poisson-stress``): "cg", Jacobi-preconditioned
+conjugate gradients on all channels at once, written here with einsum reductions because scipy's
+cg spends most of its time in BLAS dot products, which a multi-threaded BLAS slows down on a
+shared machine with few cores; and "direct" (sparse LU, scipy.sparse.linalg.splu, one
+factorisation for the three channels). On the 1M-point room (k = 16) LU was the faster at every
+size tried, but a factorisation cannot be interrupted, so "auto" (the default) uses LU up to
+DIRECT_MAX unknowns, where a cancel still answers promptly, and CG, which checks the cancel flag
+every 16 iterations, above.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.commands.options import add_param_options, param_values
+from app.commands.options import COMMAND_FLAGS, add_param_options, param_values
 from app.errors import ScanlightError, UsageError
 from app.params import BY_KEY
 
@@ -62,8 +62,13 @@ def expand_params(args):
     flags = {key: v for key, v in values.items() if v != BY_KEY[key].default}
     try:
         return ExpandParams.from_dict({**values, **extra, **flags})
-    except ScanlightError as err:
-        raise UsageError(None, f"--params: {err.reason}" if extra else err.reason) from None
+    except ScanlightError as err:   # a cross-field check (each flag alone was fine)
+        if extra:
+            raise UsageError(None, f"--params: {err.reason}") from None
+        reason = err.reason
+        for flag, key in COMMAND_FLAGS["expand"].items():
+            reason = reason.replace(f"'{BY_KEY[key].name}'", flag)
+        raise UsageError(None, reason) from None
 
 
 class _StderrProgress:

@@ -112,6 +112,8 @@ def test_missing_and_bad_inputs_are_one_line_errors(files, tmp_path):
         expand.run(_expand_args(root, "--params", '{"nope": 1}'))
     with pytest.raises(UsageError, match="--params: .*'pm_levels' must be in"):
         expand.run(_expand_args(root, "--params", '{"pm_levels": 99}'))
+    with pytest.raises(UsageError, match="--pm-scale-min .* below --pm-scale-max"):
+        expand.run(_expand_args(root, "--pm-scale-min", "8"))
 
 
 def test_expand_options_come_from_the_table(files):

@@ -3,8 +3,13 @@
 Offscreen (``--offscreen``) runs the same ViewerEngine on the headless EGL context: the frames are
 drawn exactly as in the window (same passes, same size), without the imgui panels. A screenshot
 is always taken once the progressive refinement has finished, so batch images do not depend on
-how fast the machine is. A UI script (env SCANLIGHT_UI_SCRIPT=file.py with
-``on_frame(viewer, frame_index)``) can drive either mode; tests use it.
+how fast the machine is.
+
+Automation (``--script FILE``): a Python file defining ``on_frame(viewer, frame_index)``, called
+after each frame in either mode with the viewer (``ViewerWindow`` or ``OffscreenViewer``: its
+``engine``, ``session``, ``quit()``, ``save_window_png()``, and ``script_args``, the
+``--script-arg`` strings). The window tests (tests/ui/ui_window_script.py) and the README
+screenshot (app/ui/screenshot.py) are such scripts.
 
 Both viewers pass the renderer the viewer ships, ``app.pbgi.renderer.Relighter``, to their
 engine (``relighter=``; tests inject theirs the same way).
@@ -12,9 +17,10 @@ engine (``relighter=``; tests inject theirs the same way).
 
 from __future__ import annotations
 
+import importlib.util
 import logging
-import os
 import sys
+from pathlib import Path
 
 from app.camera import parse_size as camera_parse_size
 from app.errors import ScanlightError, UsageError
@@ -27,6 +33,26 @@ log = logging.getLogger(__name__)
 def parse_size(text) -> tuple[int, int]:
     """The window size: at least 16x16 so the panels and the viewport fit."""
     return camera_parse_size(text, minimum=16)
+
+
+def load_script(path):
+    """The ``on_frame(viewer, frame_index)`` function of the script file ``path``; a missing or
+    broken file is a ScanlightError naming it."""
+    p = Path(path)
+    if not p.is_file():
+        raise ScanlightError(p, "script not found")
+    spec = importlib.util.spec_from_file_location("scanlight_ui_script", p)
+    if spec is None or spec.loader is None:
+        raise ScanlightError(p, "cannot load the script (not a Python file?)")
+    mod = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:
+        raise ScanlightError(p, f"the script failed to load: {type(exc).__name__}: {exc}") \
+            from exc
+    if not callable(getattr(mod, "on_frame", None)):
+        raise ScanlightError(p, "the script defines no on_frame(viewer, frame_index) function")
+    return mod.on_frame
 
 
 def open_session(args) -> Session:
@@ -43,13 +69,15 @@ def open_session(args) -> Session:
 class OffscreenViewer:
     """The window's frame loop without a window (same engine, same drawing)."""
 
-    def __init__(self, session: Session, size, script=None, *, relighter=Relighter):
+    def __init__(self, session: Session, size, script=None, *, relighter=Relighter,
+                 script_args=()):
         from app.render.context import get_context
         from app.ui.engine import ViewerEngine
         self.ctx = get_context()
         self.session = session
         self.engine = ViewerEngine(self.ctx, session, size=size, relighter=relighter)
         self.script = script
+        self.script_args = list(script_args)
         self.frame_index = 0
         self.quit_requested = False
 
@@ -82,21 +110,21 @@ class OffscreenViewer:
 def run_viewer(args) -> int:
     size = parse_size(getattr(args, "size", "1280x800"))
     session = open_session(args)
-    script = None
-    from app.ui.window import SCRIPT_ENV
-    script_path = os.environ.get(SCRIPT_ENV)
-    if script_path:
-        from app.ui.window import load_script
-        script = load_script(script_path)
+    script_path = getattr(args, "script", None)
+    script = load_script(script_path) if script_path else None
+    script_args = list(getattr(args, "script_arg", None) or [])
     frames = int(getattr(args, "frames", 0) or 0)
     if frames < 0:
         raise UsageError(None, f"--frames must be >= 0, got {frames}")
     shot = getattr(args, "screenshot", None)
     if getattr(args, "offscreen", False):
-        return OffscreenViewer(session, size, script, relighter=Relighter).run(frames, shot)
+        return OffscreenViewer(session, size, script, relighter=Relighter,
+                               script_args=script_args).run(frames, shot)
     try:
         from app.ui.window import ViewerWindow
-        viewer = ViewerWindow(session, size, script, relighter=Relighter)
+        native = False if getattr(args, "no_native_dialogs", False) else None
+        viewer = ViewerWindow(session, size, script, relighter=Relighter,
+                              script_args=script_args, native_dialogs=native)
     except ScanlightError:
         raise
     except Exception as exc:  # no usable display / GL 4.3: say so in one line

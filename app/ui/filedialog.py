@@ -2,11 +2,14 @@
 desktop has a dialog program (zenity or kdialog), else a small browser drawn with imgui (always
 works, including under Xvfb). Both are non-blocking: the frame loop keeps running and the
 callback gets the chosen path on the main thread.
+
+``FileDialog(native=False)`` always uses the imgui browser (``scanlight view --no-native-dialogs``:
+for desktops whose dialog program misbehaves, and for automated runs, where a desktop dialog
+would wait for a person).
 """
 
 from __future__ import annotations
 
-import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,12 +17,9 @@ from typing import Callable
 
 from imgui_bundle import imgui
 
-NATIVE_ENV = "SCANLIGHT_NATIVE_DIALOGS"  # "0" forces the imgui browser
-
 
 def native_available() -> bool:
-    if os.environ.get(NATIVE_ENV, "1") == "0":
-        return False
+    """Does the desktop have a dialog program portable-file-dialogs can drive?"""
     return bool(shutil.which("zenity") or shutil.which("kdialog"))
 
 
@@ -35,7 +35,9 @@ class _Request:
 class FileDialog:
     POPUP = "Choose a file##scanlight-file-dialog"
 
-    def __init__(self):
+    def __init__(self, native: bool | None = None):
+        """``native``: True/False use or avoid the desktop's dialog; None uses it when found."""
+        self.native = native
         self.request: _Request | None = None
         self.folder = Path.cwd()
         self.name = ""
@@ -50,7 +52,7 @@ class FileDialog:
         self.request = _Request(title, tuple(e.lower() for e in extensions), callback, save,
                                 default_name)
         self.name = default_name
-        if native_available():
+        if native_available() if self.native is None else self.native:
             from imgui_bundle import portable_file_dialogs as pfd
             filters = [title, " ".join(f"*{e}" for e in extensions) or "*"]
             start = str(self.folder / default_name)

@@ -1,13 +1,15 @@
 """The README screenshot: the real window (panels included) on the demo scene, taken by the
-project's own tooling.
+project's own tooling through the viewer's automation option.
 
+    scanlight view --size 1280x800 --script app/ui/screenshot.py \
+        --script-arg out=assets/screenshot.png [--script-arg expand=no] [--script-arg face=256]
     python -m app.ui.screenshot [--out assets/screenshot.png] [--size 1280x800] [--no-expand]
-    (packaging/screenshot.sh runs it under Xvfb)
+    (packaging/screenshot.sh runs the first under Xvfb when there is no display)
 
-It opens the viewer on the built-in demo scene, runs the HDR expansion from the demo's capture
-camera (shown with the expansion's report in the HDR panel), lets the progressive refinement of
-the relit asset finish, then saves the window's framebuffer. Without a display it re-runs itself
-under xvfb-run.
+This file is the ``--script``: it runs the HDR expansion from the demo's capture camera (shown
+with the expansion's report in the HDR panel), lets the progressive refinement of the relit asset
+finish, then saves the window's framebuffer and quits. ``main`` starts ``scanlight view`` with
+it, re-running itself under xvfb-run without a display.
 """
 
 from __future__ import annotations
@@ -20,31 +22,47 @@ import sys
 from pathlib import Path
 
 MAX_FRAMES = 20000
+FRAME_BUDGET_MS = 250.0    # larger refinement tiles: nobody interacts with this window
+state = {"step": 0, "since": 0}
 
 
-def _script(out: Path, expand: bool, face: int):
-    state = {"step": 0, "since": 0}
+def _options(viewer) -> dict:
+    opts = {"out": "assets/screenshot.png", "expand": "yes", "face": "256"}
+    for arg in viewer.script_args:
+        key, sep, value = arg.partition("=")
+        if not sep or key not in opts:
+            from app.errors import UsageError
+            raise UsageError(None, f"screenshot script: unknown --script-arg {arg!r} (give "
+                                   f"{', '.join(k + '=...' for k in opts)})")
+        opts[key] = value
+    return opts
 
-    def on_frame(viewer, frame):
-        e = viewer.engine
-        if frame > MAX_FRAMES:
-            print("screenshot: gave up waiting for the refinement", file=sys.stderr)
-            viewer.quit()
-            return
-        if state["step"] == 0 and frame >= 2:
-            if expand:
-                viewer.session.settings.set("hdr.face_size", face)
-                viewer.start_expansion(synchronous=True)
-                viewer.poll_expansion()
-            state["step"], state["since"] = 1, frame
-        elif state["step"] == 1 and frame - state["since"] > 3 and not e.gi.refining:
-            e.messages.clear()
-            state["step"], state["since"] = 2, frame
-        elif state["step"] == 2 and frame - state["since"] >= 2:  # the frame without messages
-            viewer.save_window_png(out)
-            print(f"screenshot: wrote {out}")
-            viewer.quit()
-    return on_frame
+
+def on_frame(viewer, frame):
+    """Expand (unless expand=no), wait for the refinement, clear the messages, save, quit."""
+    from app.errors import ScanlightError
+    e = viewer.engine
+    if frame > MAX_FRAMES:
+        raise ScanlightError(None, "screenshot: gave up waiting for the refinement")
+    if frame == 0:
+        state["opts"] = _options(viewer)
+        viewer.session.settings.set("pbgi.frame_budget_ms", FRAME_BUDGET_MS)
+    opts = state["opts"]
+    if state["step"] == 0 and frame >= 2:
+        if opts["expand"] not in ("no", "0", "false"):
+            viewer.session.settings.set("hdr.face_size", int(opts["face"]))
+            viewer.start_expansion(synchronous=True)
+            viewer.poll_expansion()
+        state["step"], state["since"] = 1, frame
+    elif state["step"] == 1 and frame - state["since"] > 3 and not e.gi.refining:
+        e.messages.clear()
+        state["step"], state["since"] = 2, frame
+    elif state["step"] == 2 and frame - state["since"] >= 2:  # the frame without messages
+        out = Path(opts["out"])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        viewer.save_window_png(out)
+        print(f"screenshot: wrote {out}")
+        viewer.quit()
 
 
 def main(argv=None) -> int:
@@ -62,17 +80,13 @@ def main(argv=None) -> int:
         cmd = ["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", sys.executable, "-m",
                "app.ui.screenshot"] + (argv if argv is not None else sys.argv[1:])
         return subprocess.call(cmd)
-    from app.ui.app import parse_size
-    from app.ui.engine import default_session
-    from app.ui.window import ViewerWindow
+    from app.cli import main as scanlight
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    session = default_session()
-    session.settings.update({"pbgi.frame_budget_ms": 250.0})
-    viewer = ViewerWindow(session, parse_size(args.size),
-                          _script(out, not args.no_expand, args.face_size))
-    viewer.run()
-    return 0 if out.is_file() else 1
+    rc = scanlight(["view", "--size", args.size, "--script", __file__,
+                    "--script-arg", f"out={out}",
+                    "--script-arg", f"expand={'no' if args.no_expand else 'yes'}",
+                    "--script-arg", f"face={args.face_size}"])
+    return rc or (0 if out.is_file() else 1)
 
 
 if __name__ == "__main__":

@@ -12,11 +12,14 @@ Navigation (Blender first, Maya's Alt combinations too):
                                      wheel = speed, Esc or Shift + F leaves
     G / R / S                        asset gizmo: move / rotate / scale
     F12                              screenshot (PNG + EXR, once the refinement is complete)
+
+Automation: ``script`` is an ``on_frame(viewer, frame_index)`` function called after every frame
+(``scanlight view --script FILE``, app/ui/app.py); it sees this object, its engine and session,
+and ``script_args``.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import logging
 import time
 from pathlib import Path
@@ -30,27 +33,15 @@ from app.ui.engine import ViewerEngine
 
 log = logging.getLogger(__name__)
 
-SCRIPT_ENV = "SCANLIGHT_UI_SCRIPT"
-
-
-def load_script(path: str):
-    """A test/automation hook: a Python file defining ``on_frame(viewer, frame_index)``."""
-    spec = importlib.util.spec_from_file_location("scanlight_ui_script", path)
-    if spec is None or spec.loader is None:
-        raise ScanlightError(path, "cannot load the UI script")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    if not hasattr(mod, "on_frame"):
-        raise ScanlightError(path, "UI script has no on_frame(viewer, frame_index) function")
-    return mod.on_frame
-
 
 class ViewerWindow:
     """``relighter`` is a factory ``f(ctx=...)`` (the window makes one relighter per session it
-    opens)."""
+    opens); ``script`` an ``on_frame(viewer, frame_index)`` hook with its ``script_args``;
+    ``native_dialogs`` False keeps the file dialogs inside the window (None: the desktop's when
+    it has one, app/ui/filedialog.py)."""
 
     def __init__(self, session: Session, size=(1280, 800), script=None, title="Scanlight", *,
-                 relighter=Relighter):
+                 relighter=Relighter, script_args=(), native_dialogs: bool | None = None):
         import moderngl_window as mglw
         from imgui_bundle import imgui
         from moderngl_window.conf import settings
@@ -75,8 +66,9 @@ class ViewerWindow:
         self.engine = ViewerEngine(self.ctx, session, size=self.wnd.buffer_size,
                                    relighter=relighter)
         self.session = session
-        self.dialog = FileDialog()
+        self.dialog = FileDialog(native=native_dialogs)
         self.script = script
+        self.script_args = list(script_args)
         self.frame_index = 0
         self.quit_requested = False
         self.fly = False

@@ -81,8 +81,9 @@ def test_every_panel_draws_without_errors(ui, monkeypatch):
     assert ui.photo_texture is not None and ui.photo_texture.glo in ui.imgui.textures
 
 
-def test_file_dialog_browses_and_returns_a_path(ui, tmp_path, monkeypatch):
-    monkeypatch.setenv("SCANLIGHT_NATIVE_DIALOGS", "0")
+def test_file_dialog_browses_and_returns_a_path(ui, tmp_path):
+    from app.ui.filedialog import FileDialog
+    ui.dialog = FileDialog(native=False)       # the imgui browser, even where zenity exists
     (tmp_path / "room.ply").write_text("ply")
     (tmp_path / "notes.txt").write_text("x")
     chosen = []

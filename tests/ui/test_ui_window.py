@@ -1,7 +1,8 @@
 """The real window under X (run the suite under xvfb-run): panels, live BRDF and mode changes.
 
-The viewer runs in a subprocess (`scanlight view --session ...`) driven by the UI script
-tests/ui_window_script.py; the assertions read the window screenshots it took. Regions: the
+The viewer runs in a subprocess (`scanlight view --session ... --script
+tests/ui/ui_window_script.py`, the documented automation option); the assertions read the
+window screenshots the script took. Regions: the
 panel column is x < 340 (app/ui/panels PANEL_WIDTH); the stats box and the messages sit in the
 top 110 pixels, the status line and progress bar in the bottom 50.
 """
@@ -22,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[2]
 TESTS = Path(__file__).resolve().parent
 W, H = 900, 520
 PANEL = 340
+TARGET_MODE = "envmap"     # the mode the script switches to (--script-arg mode=...)
 
 pytestmark = pytest.mark.window
 
@@ -36,11 +38,10 @@ def run(tmp_path_factory):
     s = small_session(**{"pbgi.render_scale": 0.25, "pbgi.frame_budget_ms": 200.0,
                          "view.show_gizmo": False, "view.show_cameras": False})
     session = s.save(tmp / "session.json")
-    env = dict(os.environ, SCANLIGHT_UI_SCRIPT=str(TESTS / "ui_window_script.py"),
-               SCANLIGHT_UI_OUT=str(tmp), SCANLIGHT_CONFIG=str(tmp / "cfg"),
-               PYTHONPATH=os.pathsep.join([str(TESTS), str(ROOT)]))
-    env.pop("SCANLIGHT_RELIGHTER", None)
-    cmd = [sys.executable, "-m", "app", "view", "--session", str(session), "--size", f"{W}x{H}"]
+    env = dict(os.environ, SCANLIGHT_CONFIG=str(tmp / "cfg"), PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "app", "view", "--session", str(session), "--size", f"{W}x{H}",
+           "--script", str(TESTS / "ui_window_script.py"), "--script-arg", f"out={tmp}",
+           "--script-arg", f"mode={TARGET_MODE}", "--no-native-dialogs"]
     res = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     result = json.loads((tmp / "result.json").read_text())
@@ -90,7 +91,7 @@ def test_mode_change_reaches_the_renderer_and_the_picture(run):
         assert shot["renderer_class"] == "app.pbgi.renderer.Relighter"
         assert shot["microbuffer"] == 8 and shot["completed"] is True
     assert shots["b"]["mode"] == "classic"
-    assert shots["c"]["mode"] == os.environ.get("SCANLIGHT_UI_MODE", "envmap")
+    assert shots["c"]["mode"] == TARGET_MODE
     b, c = _img(tmp, "b"), _img(tmp, "c")
     asset = read_png(tmp / "b.asset.png")[..., 0] > 0
     asset[:, :PANEL + 20] = False
@@ -102,7 +103,7 @@ def test_closing_saves_the_last_session(run):
     from app.settings import load_session
     tmp, result = run
     last = load_session(tmp / "cfg" / "last_session.json")
-    assert last.mode == os.environ.get("SCANLIGHT_UI_MODE", "envmap")
+    assert last.mode == TARGET_MODE
     assert last.materials[0].base_color == pytest.approx((0.1, 0.25, 0.9))
     assert last.camera is not None and (last.camera.width, last.camera.height) == (W, H)
 

@@ -1,18 +1,17 @@
-"""UI script for tests/test_ui_window.py (loaded by the viewer through SCANLIGHT_UI_SCRIPT).
+"""UI script for tests/ui/test_ui_window.py (`scanlight view --script ui_window_script.py
+--script-arg out=DIR --script-arg mode=MODE`).
 
 Drives the real window: waits for the refinement to converge, takes window screenshots, changes
-a BRDF parameter and the PBGI mode through the settings model, orbits with synthetic mouse
-events, and writes what it saw to $SCANLIGHT_UI_OUT/result.json.
+a BRDF parameter and the PBGI mode (to MODE) through the settings model, orbits with synthetic
+mouse events, and writes what it saw to DIR/result.json.
 """
 
 import json
 import math
-import os
 from pathlib import Path
 
-OUT = Path(os.environ["SCANLIGHT_UI_OUT"])
-TARGET_MODE = os.environ.get("SCANLIGHT_UI_MODE", "envmap")
 state = {"step": 0, "since": 0, "result": {"shots": {}}}
+args = {}          # the --script-arg KEY=VALUE pairs, read at the first frame
 
 
 def converged(viewer, frame):
@@ -22,11 +21,12 @@ def converged(viewer, frame):
 
 def shoot(viewer, name):
     from app.io.images import write_png
-    viewer.save_window_png(OUT / f"{name}.png")
+    out = Path(args["out"])
+    viewer.save_window_png(out / f"{name}.png")
     e = viewer.engine
-    write_png(OUT / f"{name}.engine.png", e.view.read_display())
+    write_png(out / f"{name}.engine.png", e.view.read_display())
     alpha = (e.view.read_linear()[..., 3] > 0).astype("uint8") * 255
-    write_png(OUT / f"{name}.asset.png", alpha)
+    write_png(out / f"{name}.asset.png", alpha)
     gi = e.gi_stats
     state["result"]["shots"][name] = {"mode": gi and gi.mode,
                                       "renderer": e.renderer_available,
@@ -38,6 +38,8 @@ def shoot(viewer, name):
 
 
 def on_frame(viewer, frame):
+    if not args:
+        args.update(a.split("=", 1) for a in viewer.script_args)
     e, s = viewer.engine, viewer.session
     st, res = state["step"], state["result"]
     if frame > 4000:
@@ -49,7 +51,7 @@ def on_frame(viewer, frame):
         state["since"], st = frame, 1
     elif st == 1 and converged(viewer, frame):
         shoot(viewer, "b")
-        s.settings.set("pbgi.mode", TARGET_MODE)
+        s.settings.set("pbgi.mode", args["mode"])
         state["since"], st = frame, 2
     elif st == 2 and converged(viewer, frame):
         shoot(viewer, "c")
@@ -110,7 +112,7 @@ def on_frame(viewer, frame):
         st = 99
     if st == 99:
         res["frames"] = frame
-        (OUT / "result.json").write_text(json.dumps(res, indent=1))
+        (Path(args["out"]) / "result.json").write_text(json.dumps(res, indent=1))
         viewer.quit()
         st = 100
     state["step"] = st

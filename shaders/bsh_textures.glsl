@@ -11,8 +11,9 @@ void main() {
     if (i >= node_count()) return;
     Node n = load_node(i);
     ivec2 c = bsh_texel(i);
-    imageStore(bsh_sphere_img, c, vec4(n.center, n.radius));
-    imageStore(bsh_cone_img, c, vec4(n.cone_axis, n.cone_cos));
-    imageStore(bsh_link_img, c, uvec4(n.skip, n.count | (n.is_leaf ? BSH_TEX_LEAF_BIT : 0u), 0u, 0u));
-    imageStore(bsh_color_img, c, vec4(n.color, 0.0));
+    imageStore(bsh_sphere_img, c, bsh_sphere_pack(BshSphere(n.center, n.radius)));
+    imageStore(bsh_cone_img, c, bsh_cone_pack(BshCone(n.cone_axis, n.cone_cos)));
+    imageStore(bsh_link_img, c,
+               bsh_link_pack(BshLink(n.skip, n.count | (n.is_leaf ? BSH_TEX_LEAF_BIT : 0u))));
+    imageStore(bsh_color_img, c, bsh_color_pack(BshColor(n.color)));
 }

@@ -8,11 +8,10 @@
 // The shading normal is bent so that n . v >= 0.01: interpolated and normal-mapped normals can
 // face away from the camera at silhouettes, where the BRDF would be 0 (black rims).
 
+// vertex inputs in_position, ... and the RECEIVER_SLOT_* output locations:
+#include "gen/gbuffer.glsl"
+
 #ifdef VERTEX_SHADER
-layout(location = 0) in vec3 in_position;   // relative to the hierarchy origin
-layout(location = 1) in vec3 in_normal;
-layout(location = 2) in vec2 in_uv;
-layout(location = 3) in vec4 in_tangent;    // xyz: direction of increasing u, w: handedness
 uniform mat4 u_view;
 uniform mat4 u_proj;
 out vec3 v_position;
@@ -29,8 +28,6 @@ void main() {
 #endif
 
 #ifdef FRAGMENT_SHADER
-#define RECEIVER_SLOTS_ONLY 1
-#include "gen/receivers.glsl"
 in vec3 v_position;
 in vec3 v_normal;
 in vec2 v_uv;

@@ -66,8 +66,7 @@ void main() {
     MipLink L = mip_link(g);
     if (L.count == 0u) {
         uint rid = u_first + L.first;
-        imageStore(mip_sphere_img, mip_texel(g), vec4(receiver_position(rid), 0.0));
-        imageStore(mip_cone_img, mip_texel(g), vec4(unit(receiver_normal(rid)), 0.0));
+        mip_store(g, MipSphere(receiver_position(rid), 0.0), MipCone(unit(receiver_normal(rid)), 0.0));
         return;
     }
     uint last = L.count - 1u;
@@ -77,9 +76,9 @@ void main() {
     float t[4];
     for (uint k = 0u; k < 4u; ++k) {
         uint ch = L.first + min(k, last);
-        vec4 s = mip_sphere(ch);
-        vec4 n = mip_cone(ch);
-        c[k] = s.xyz; r[k] = s.w; a[k] = n.xyz; t[k] = n.w;
+        MipSphere s = mip_sphere(ch);
+        MipCone n = mip_cone(ch);
+        c[k] = s.center; r[k] = s.radius; a[k] = n.axis; t[k] = n.angle;
     }
     merge_sphere(c[0], r[0], c[1], r[1]);
     merge_sphere(c[2], r[2], c[3], r[3]);
@@ -89,6 +88,5 @@ void main() {
     merge_cone(a[0], t[0], a[2], t[2]);
     // growth margin: float32 rounding of the merges above (relative 1e-6 of the extent)
     float grow = 1e-6 * (length(c[0]) + r[0]) + 1e-7;
-    imageStore(mip_sphere_img, mip_texel(g), vec4(c[0], r[0] + grow));
-    imageStore(mip_cone_img, mip_texel(g), vec4(a[0], min(t[0] + 2e-6, PI)));
+    mip_store(g, MipSphere(c[0], r[0] + grow), MipCone(a[0], min(t[0] + 2e-6, PI)));
 }

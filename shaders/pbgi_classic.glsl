@@ -67,7 +67,8 @@ void main() {
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
 #ifdef SHARE_SPLIT
-    vec4 ball = vec4(share_center(i), share_ball(i));
+    vec3 ball_center = share_center(i);
+    float ball_radius = share_ball(i);
     N = share_frame(i);
 #endif
     vec3 T, B;
@@ -83,12 +84,12 @@ void main() {
         uint skip;
         uint dec = cut_decide(node, p, N, T, B, u_omega_stop, u_omega_horizon, u_m, rect, skip);
 #ifdef SHARE_SPLIT
-        vec4 sph = tnode_sphere(node);
-        vec3 dc = sph.xyz - ball.xyz;
-        float rr = ball.w + sph.w;
+        BshSphere sph = tnode_sphere(node);
+        vec3 dc = sph.center - ball_center;
+        float rr = ball_radius + sph.radius;
         bool far = dot(dc, dc) >= rr * rr;
 #if SHARE_SPLIT == 1
-        if (!far) dec = (tnode_link(node).y & BSH_TEX_LEAF_BIT) != 0u ? CUT_SKIP : CUT_DESCEND;
+        if (!far) dec = (tnode_link(node).count_flags & BSH_TEX_LEAF_BIT) != 0u ? CUT_SKIP : CUT_DESCEND;
 #else
         if (far) dec = CUT_SKIP;
 #endif

@@ -80,7 +80,7 @@ void to_second_stream(uint A, uint P) {
     uint idx = atomicAdd(counters[C_S2], 1u);
     if (idx < counters[C_S2_CAP]) {
         uint prev = imageAtomicExchange(heads_img, mip_texel(P), idx);
-        item_store(idx, Item(A, prev, P, tnode_link(A).x));
+        item_store(idx, Item(A, prev, P, tnode_link(A).skip));
         atomicAdd(counters[C_TO_S2], 1u);
     } else {                                  // stream full: back on the stack, retried later
         uint slot = atomicAdd(counters[C_STACK], 1u);
@@ -156,54 +156,54 @@ void main() {
             return;
         }
         uint left = A + 1u;
-        push_pairs(left, P, tnode_link(left).x, P, 2u);
+        push_pairs(left, P, tnode_link(left).skip, P, 2u);
         atomicAdd(counters[C_NODE_REFINES], 1u);
         return;
     }
 
-    vec4 ps = mip_sphere(P);
-    vec4 pc = mip_cone(P);
-    vec4 s = tnode_sphere(A);
-    bool leaf = (tnode_link(A).y & BSH_TEX_LEAF_BIT) != 0u;
-    vec3 w = s.xyz - ps.xyz;
+    MipSphere ps = mip_sphere(P);
+    MipCone pc = mip_cone(P);
+    BshSphere s = tnode_sphere(A);
+    bool leaf = (tnode_link(A).count_flags & BSH_TEX_LEAF_BIT) != 0u;
+    vec3 w = s.center - ps.center;
     float d = length(w);
-    float R = ps.w;
+    float R = ps.radius;
     bool above_all = false;                  // A entirely above every receiver's horizon
-    if (d > s.w + R) {                       // eqs. 6-8 and Fig. 5 for every receiver below P
-        float beta = asin(min((s.w + R) / d, 1.0));
-        float phi = angle_between(pc.xyz, w);
-        above_all = phi + beta + pc.w + u_cull_margin < 0.5 * PI;
-        if (phi - beta > pc.w + 0.5 * PI + u_cull_margin) {
+    if (d > s.radius + R) {                       // eqs. 6-8 and Fig. 5 for every receiver below P
+        float beta = asin(min((s.radius + R) / d, 1.0));
+        float phi = angle_between(pc.axis, w);
+        above_all = phi + beta + pc.angle + u_cull_margin < 0.5 * PI;
+        if (phi - beta > pc.angle + 0.5 * PI + u_cull_margin) {
             atomicAdd(counters[C_CULLED], 1u);
             return;
         }
-        vec4 cone = tnode_cone(A);
-        float alpha = acos(clamp(cone.w, -1.0, 1.0));
+        BshCone cone = tnode_cone(A);
+        float alpha = acos(clamp(cone.cos_angle, -1.0, 1.0));
         if (alpha + beta + 0.5 * PI + u_cull_margin < PI
-                && angle_between(-w, cone.xyz) > alpha + beta + 0.5 * PI + u_cull_margin) {
+                && angle_between(-w, cone.axis) > alpha + beta + 0.5 * PI + u_cull_margin) {
             atomicAdd(counters[C_CULLED], 1u);
             return;
         }
     }
-    float omega_c = solid_angle(s.w, d);
+    float omega_c = solid_angle(s.radius, d);
     // Every receiver below P decides A in one step (a leaf, or small enough from P's nearest
     // point - with the straddling threshold unless A is above every receiver's horizon): the
     // refinement is done, the finishing walk accepts (or culls) A per receiver. Hybrid also
     // stops at Omega_tr.
     float limit = above_all ? u_omega_stop : u_omega_horizon;
-    bool decided_all = leaf || (d - R > s.w && solid_angle(s.w, d - R) <= limit);
+    bool decided_all = leaf || (d - R > s.radius && solid_angle(s.radius, d - R) <= limit);
     if (decided_all || (hybrid && omega_c <= u_omega_tr)) {
         if (decided_all) atomicAdd(counters[C_ACCEPTED], 1u);
         to_second_stream(A, P);
         return;
     }
-    bool descend_all = !leaf && solid_angle(s.w, d + R) > u_omega_stop;
-    float omega_p = TWO_PI * (1.0 - cos(pc.w));
+    bool descend_all = !leaf && solid_angle(s.radius, d + R) > u_omega_stop;
+    float omega_p = TWO_PI * (1.0 - cos(pc.angle));
     if (!allowed) {
         to_second_stream(A, P);
     } else if (descend_all && omega_c > u_pixel_factor * omega_p) {
         uint left = A + 1u;
-        push_pairs(left, P, tnode_link(left).x, P, 2u);
+        push_pairs(left, P, tnode_link(left).skip, P, 2u);
         atomicAdd(counters[C_NODE_REFINES], 1u);
     } else {
         uint n = L.count;

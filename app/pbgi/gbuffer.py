@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from app.camera import Camera
-from app.pbgi.gpu_layout import RECEIVER, material_rows
+from app.pbgi.gpu_layout import GBUFFER_VERTEX, RECEIVER, TEXTURED_PARAMS, material_rows
 from app.render.context import bind_anchor
 from app.render.programs import load_program
 from app.render.splat import gl_mat, near_far, relative_view
@@ -73,7 +73,9 @@ class GBuffer:
         self.mesh, self.origin = mesh, np.asarray(origin, dtype=np.float64)
         pos = (mesh.positions.astype(np.float64) - self.origin).astype(np.float32)
         uv = mesh.uvs if mesh.uvs is not None else np.zeros((len(pos), 2), np.float32)
-        vbo = np.concatenate([pos, mesh.normals, uv, mesh.tangents], axis=1).astype("f4")
+        vbo = GBUFFER_VERTEX.zeros(len(pos))
+        vbo["position"], vbo["normal"], vbo["uv"], vbo["tangent"] = (pos, mesh.normals, uv,
+                                                                     mesh.tangents)
         order = np.argsort(mesh.material_ids, kind="stable")
         idx = mesh.indices[order].astype("u4")
         mids = mesh.material_ids[order]
@@ -84,7 +86,8 @@ class GBuffer:
         ib = self.ctx.buffer(idx.tobytes() if len(idx) else b"\0" * 12)
         self._buffers = [vb, ib]
         self.vao = self.ctx.vertex_array(
-            self.prog, [(vb, "3f 3f 2f 4f", "in_position", "in_normal", "in_uv", "in_tangent")],
+            self.prog, [(vb, GBUFFER_VERTEX.vertex_format(),
+                         *(f"in_{f.name}" for f in GBUFFER_VERTEX.fields))],
             index_buffer=ib, index_element_size=4)
         self.bounds = mesh.bounds() if mesh.n_faces else (np.zeros(3), np.ones(3))
 
@@ -154,9 +157,10 @@ class GBuffer:
     def _set_material(self, mid: int, m) -> None:
         prog = self.prog
         prog["u_material_id"].value = float(mid)
-        prog["u_base_color"].value = tuple(float(c) for c in m.base_color)
-        prog["u_metallic"].value = float(m.metallic)
-        prog["u_roughness"].value = float(m.roughness)
+        for name in TEXTURED_PARAMS:       # the factors the textures multiply (u_base_color, ...)
+            v = getattr(m, name)
+            prog[f"u_{name}"].value = (tuple(float(c) for c in v) if name == "base_color"
+                                       else float(v))
         for name, arr in (("base", m.base_color_texture), ("mr", m.metallic_roughness_texture),
                           ("normal", m.normal_texture)):
             unit = TEXTURE_UNITS[name]

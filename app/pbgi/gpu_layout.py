@@ -12,9 +12,10 @@ A receiver carries the parameters a material may texture: base colour, metallic 
 each factor x texture as the G-buffer computed them (shaders/gbuffer.glsl). The material table
 carries only the others (``MATERIAL``: subsurface, specular, ... - no texture can change them).
 ``TEXTURED_PARAMS`` is the split; ``receiver_principled(rid)`` (gen/materials.glsl) assembles a
-receiver's parameters from the two and is the only place the gather gets them. (Before, the
-table also held the untextured factors of the three, which the gather read and then overwrote
-with the receiver's values.)
+receiver's parameters from the two and is the only place the gather gets them, so no parameter
+reaches the gather twice (a roughness in the table too would be a second value, silently
+ignored or silently winning). ``receiver_params`` is the same rule in numpy (the CPU reference's
+G-buffer, tests/support/scenes.py).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 
 from app.material import ALL_NAMES, SCALAR_PARAMS
 from app.pbgi import layout
+from app.pbgi.brdf import PARAM_NAMES
 from app.render.gpu_records import Field, Pad, Record, Units
 
 # -- binding points and units ---------------------------------------------------------------------
@@ -127,17 +129,39 @@ def material_rows(materials) -> np.ndarray:
     return out
 
 
-def principled_params(receivers: np.ndarray, table: np.ndarray) -> np.ndarray:
+def _param_columns(name: str) -> slice:
+    """Columns of a Disney parameter in brdf.PARAM_NAMES order (base colour: three)."""
+    i = PARAM_NAMES.index("base_r") if name == "base_color" else PARAM_NAMES.index(name)
+    return slice(i, i + (3 if name == "base_color" else 1))
+
+
+def receiver_params(params: np.ndarray, receivers) -> np.ndarray:
+    """The rule in numpy: (n, 13) Disney parameters (brdf.PARAM_NAMES order) with
+    TEXTURED_PARAMS replaced by the RECEIVER records' values, in place (returned)."""
+    rec = RECEIVER.view(receivers)
+    for name in TEXTURED_PARAMS:
+        params[:, _param_columns(name)] = rec[name].reshape(len(rec), -1)
+    return params
+
+
+def principled_params(receivers, table) -> np.ndarray:
     """numpy twin of ``receiver_principled``: (n, 13) float64 parameters in brdf.PARAM_NAMES
     order for RECEIVER records ``receivers`` and the MATERIAL table ``table``."""
     rec = RECEIVER.view(receivers)
     rows = MATERIAL.view(table)[(rec["material"] + np.float32(0.5)).astype(np.int64)]
-    cols = []
-    for name in ALL_NAMES:
-        src = rec if name in TEXTURED_PARAMS else rows
-        v = src[name].astype(np.float64)
-        cols.append(v if v.ndim == 2 else v[:, None])
-    return np.concatenate(cols, axis=1)
+    params = np.zeros((len(rec), len(PARAM_NAMES)))
+    for f in MATERIAL.fields:
+        params[:, _param_columns(f.name)] = rows[f.name][:, None]
+    return receiver_params(params, rec)
+
+
+# The G-buffer's vertex buffer (shaders/gbuffer.glsl's inputs, app/pbgi/gbuffer.py's upload).
+GBUFFER_VERTEX = Record("GBufferVertex", (
+    Field("position", "vec3", "relative to the hierarchy origin"),
+    Field("normal", "vec3", "vertex normal"),
+    Field("uv", "vec2", "texture coordinates (0 without UVs)"),
+    Field("tangent", "vec4", "xyz: direction of increasing u, w: handedness"),
+), word="float", slot_words=1, doc="a vertex of the asset")
 
 
 # -- walks and the pair refinement ---------------------------------------------------------------
@@ -286,7 +310,7 @@ GATHER_OUTPUT = Record("GatherOutput", (
 ), word="float", doc="the gather's output per tile pixel")
 
 RECORDS = {r.name: r for r in (
-    RECEIVER, MATERIAL, CLASSIC_STATE, FINISH_STATE, PAIR_COUNTERS, PAIR, ITEM, HEAD, MIP_SPHERE,
+    RECEIVER, MATERIAL, GBUFFER_VERTEX, CLASSIC_STATE, FINISH_STATE, PAIR_COUNTERS, PAIR, ITEM, HEAD, MIP_SPHERE,
     MIP_CONE, MIP_LINK, BSH_SPHERE, BSH_CONE, BSH_LINK, BSH_COLOR, MB_ENTRY, MB_DIRECTION,
     MB_FLUX, MB_BANDS, SHARE_ROW, BLOCK_OF, FRAME, GATHER_OUTPUT)}
 
@@ -322,7 +346,6 @@ def bindings_glsl() -> str:
 #define MIP_WIDTH {MIP_WIDTH}u        // pyramid / pair-stream element g at (g % W, g / W)
 #define MIP_WIDTH_LOG2 {_log2(MIP_WIDTH)}u
 #define NIL {_u(NIL)}        // no pixel / no item (pyramid, pair streams)
-#define MIP_NIL NIL
 #define MB_EMPTY {_u(MB_EMPTY)}   // empty micro-buffer entry (key and node)
 #define SHARE_NONE {_u(SHARE_NONE)} // receiver without a far-field block
 #define WALK_DONE {_u(WALK_DONE)}           // walk state flags
@@ -344,24 +367,35 @@ def _ssbo_getters(rec: Record, array: str, prefix: str) -> str:
 
 
 def receivers_glsl() -> str:
-    """``gen/receivers.glsl``: the receiver record, its SSBO and one getter per field. Define
-    RECEIVER_SLOTS_ONLY for the slot numbers alone (the G-buffer's render targets)."""
-    slots = "\n".join(f"#define RECEIVER_SLOT_{f.name.upper()} {RECEIVER.slot(f.name)}"
-                      for f in RECEIVER.fields)
+    """``gen/receivers.glsl``: the receiver record, its SSBO and one getter per field."""
     return f"""{_banner("receivers_glsl", "RECEIVER")}
 // Receivers: the object pixels of the G-buffer in image order (app/pbgi/gbuffer.py), {RECEIVER.slots} vec4 each;
 // slot k is G-buffer render target k (target 0's w, the coverage, holds the pixel index):
 {RECEIVER.glsl_comment()}
-#ifndef SCANLIGHT_GEN_RECEIVER_SLOTS
-#define SCANLIGHT_GEN_RECEIVER_SLOTS
-#define RECEIVER_VEC4S {RECEIVER.slots}u
-{slots}
-#endif
-#if !defined(RECEIVER_SLOTS_ONLY) && !defined(SCANLIGHT_GEN_RECEIVERS_GLSL)
+#ifndef SCANLIGHT_GEN_RECEIVERS_GLSL
 #define SCANLIGHT_GEN_RECEIVERS_GLSL
 #include "gen/bindings.glsl"
 layout(std430, binding = SSBO_RECEIVERS) readonly buffer Receivers {{ vec4 receivers[]; }};
 {_ssbo_getters(RECEIVER, "receivers", "receiver_")}
+#endif
+"""
+
+
+def gbuffer_glsl() -> str:
+    """``gen/gbuffer.glsl``: shaders/gbuffer.glsl's vertex inputs (GBUFFER_VERTEX, in the
+    vertex stage) and its render targets' locations (RECEIVER_SLOT_*: target k = receiver slot
+    k)."""
+    slots = "\n".join(f"#define RECEIVER_SLOT_{f.name.upper()} {RECEIVER.slot(f.name)}"
+                       for f in RECEIVER.fields)
+    return f"""{_banner("gbuffer_glsl", "GBUFFER_VERTEX or RECEIVER")}
+#ifndef SCANLIGHT_GEN_GBUFFER_GLSL
+#define SCANLIGHT_GEN_GBUFFER_GLSL
+// Render target k of the G-buffer is slot k of the receiver record (gen/receivers.glsl):
+{slots}
+#ifdef VERTEX_SHADER
+// The asset's vertices (GBUFFER_VERTEX), one attribute per field:
+{GBUFFER_VERTEX.glsl_vertex_inputs()}
+#endif
 #endif
 """
 
@@ -425,10 +459,10 @@ def pair_streams_glsl() -> str:
 //   pairs ({PAIR.image_format}): the pending (node, pyramid pixel) pairs, a stack;
 //   items ({ITEM.image_format}): the second stream, sub-tree roots for the finishing walk;
 //   heads ({HEAD.image_format}): per pyramid pixel, the first item of its list or NIL.
-// Needs gen/mip.glsl (mip_texel).
 #ifndef SCANLIGHT_GEN_PAIR_STREAMS_GLSL
 #define SCANLIGHT_GEN_PAIR_STREAMS_GLSL
 #include "gen/bindings.glsl"
+#include "gen/mip.glsl"
 // counters[] of the refinement ({PAIR_COUNTERS.words} uints), word indexes:
 {PAIR_COUNTERS.glsl_word_defines("C_")}
 #define PAIR_COUNTER_WORDS {PAIR_COUNTERS.words}
@@ -478,10 +512,18 @@ layout({MIP_SPHERE.image_format}, binding = IMG_MIP_SPHERE) uniform readonly ima
 layout({MIP_CONE.image_format}, binding = IMG_MIP_CONE) uniform readonly image2D mip_cone_img;
 #endif
 layout({MIP_LINK.image_format}, binding = IMG_MIP_LINK) uniform readonly uimage2D mip_link_img;
+{_texel_codec(MIP_SPHERE, "mip_sphere")}
+{_texel_codec(MIP_CONE, "mip_cone")}
 {_texel_codec(MIP_LINK, "mip_link")}
-vec4 mip_sphere(uint g) {{ return imageLoad(mip_sphere_img, mip_texel(g)); }}   // (center, radius)
-vec4 mip_cone(uint g) {{ return imageLoad(mip_cone_img, mip_texel(g)); }}       // (axis, angle)
+MipSphere mip_sphere(uint g) {{ return mip_sphere_unpack(imageLoad(mip_sphere_img, mip_texel(g))); }}
+MipCone mip_cone(uint g) {{ return mip_cone_unpack(imageLoad(mip_cone_img, mip_texel(g))); }}
 MipLink mip_link(uint g) {{ return mip_link_unpack(imageLoad(mip_link_img, mip_texel(g))); }}
+#ifdef MIP_WRITABLE
+void mip_store(uint g, MipSphere s, MipCone c) {{
+    imageStore(mip_sphere_img, mip_texel(g), mip_sphere_pack(s));
+    imageStore(mip_cone_img, mip_texel(g), mip_cone_pack(c));
+}}
+#endif
 #endif
 """
 
@@ -533,6 +575,7 @@ def bsh_textures_glsl() -> str:
                           for r, n, t in texs)
     images = "\n".join(f"layout({r.image_format}, binding = IMG_BSH_{n.upper()}) uniform writeonly "
                         f"{'u' if r.word == 'uint' else ''}image2D bsh_{n}_img;" for r, n, _ in texs)
+    codecs = "\n".join(_texel_codec(r, f"bsh_{n}") for r, n, _ in texs)
     return f"""{_banner("bsh_textures_glsl", "BSH_SPHERE, BSH_CONE, BSH_LINK or BSH_COLOR")}
 // Node i lives at texel bsh_texel(i) = (i % BSH_TEX_WIDTH, i / BSH_TEX_WIDTH) of four textures:
 {doc}
@@ -540,6 +583,7 @@ def bsh_textures_glsl() -> str:
 #define SCANLIGHT_GEN_BSH_TEXTURES_GLSL
 #include "gen/bindings.glsl"
 ivec2 bsh_texel(uint i) {{ return ivec2(i & (BSH_TEX_WIDTH - 1u), i >> BSH_TEX_WIDTH_LOG2); }}
+{codecs}
 #ifdef BSH_TEX_WRITABLE
 {images}
 #else
@@ -602,6 +646,7 @@ void gather_output_store(uint pixel, GatherOutput v) {{ out_rgba[pixel] = gather
 GENERATED = {
     "gen/bindings.glsl": bindings_glsl,
     "gen/receivers.glsl": receivers_glsl,
+    "gen/gbuffer.glsl": gbuffer_glsl,
     "gen/materials.glsl": materials_glsl,
     "gen/walk_state.glsl": walk_state_glsl,
     "gen/pair_streams.glsl": pair_streams_glsl,

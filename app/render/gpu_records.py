@@ -7,9 +7,10 @@ when the two drift apart. Declared here, a field moves in both at once, and the 
 every record on the GPU through the generated code (tests/pbgi/test_gpu_records.py).
 
 A ``Record`` is a sequence of 32-bit *words* grouped in *slots* of ``slot_words`` words: the unit
-GLSL reads at once (4: one vec4 / uvec4 SSBO element or image texel; 1: a plain float / uint
-array). Fields follow each other in declaration order and never straddle a slot (a field is one
-swizzle of one load); ``Pad`` fills the rest of a slot. Each field has a GLSL type (float, uint,
+GLSL reads at once (4: one vec4 / uvec4 SSBO element or image texel; 2: an RG texel; 1: a plain
+float / uint array, or a vertex). Fields follow each other in declaration order; with slots of
+more than one word a field never straddles two (it is one swizzle of one load), and ``Pad``
+fills the rest of a slot. Each field has a GLSL type (float, uint,
 int, vecN, uvecN, ivecN); the storage's base type is ``word`` (float or uint). A field whose base
 type differs from the storage's keeps its bits (``floatBitsToUint``) unless it is declared
 ``stored_as="value"``: an integer held as a float *value* (a material id written by a float
@@ -24,7 +25,11 @@ What the generated GLSL can be (each record picks what its users need):
 * ``glsl_word_defines``: ``#define PREFIX_FIELD word`` for records used as a word array with
   atomics (counters);
 * a struct used as the SSBO element itself: valid std430 when every field is a 32-bit scalar
-  (``std430_struct_ok``), so the struct *is* the layout.
+  (``std430_struct_ok``), so the struct *is* the layout;
+* ``glsl_vertex_inputs`` / ``vertex_format``: a vertex buffer's attributes and moderngl format.
+
+Texel records also give their texture's components, moderngl dtype and GLSL image format.
+``Units`` is the same idea for binding points: one table, ``#define``s for the shaders.
 """
 
 from __future__ import annotations
@@ -281,6 +286,20 @@ class Record:
         """``#define {prefix}{FIELD} word`` per field: indexes into a word array."""
         return "\n".join(f"#define {prefix}{f.name.upper()} {self._word_of[f.name]}"
                          f"{'  // ' + f.doc if f.doc else ''}" for f in self.fields)
+
+    # -- vertex buffers -------------------------------------------------------------------------
+    def vertex_format(self) -> str:
+        """moderngl's buffer format of the record as one vertex ("3f 3f 2f 4f"); fields are
+        tightly packed (slot_words 1)."""
+        if self.slot_words != 1 or sum(f.comps for f in self.fields) != self.words:
+            raise ValueError(f"{self.name}: a vertex record is tightly packed (slot_words=1)")
+        code = {"float": "f", "uint": "u", "int": "i"}
+        return " ".join(f"{f.comps}{code[f.base]}" for f in self.fields)
+
+    def glsl_vertex_inputs(self, prefix: str = "in_") -> str:
+        """``layout(location = k) in TYPE {prefix}{field};`` per field, in order."""
+        return "\n".join(f"layout(location = {k}) in {f.type} {prefix}{f.name};"
+                         f"{'  // ' + f.doc if f.doc else ''}" for k, f in enumerate(self.fields))
 
     # -- textures / images --------------------------------------------------------------------
     @property

@@ -28,6 +28,7 @@ GENERATED_INCLUDES = {
     "gen/node_layout.glsl": "app.pbgi.layout:glsl_header",
     "gen/bindings.glsl": "app.pbgi.gpu_layout:bindings_glsl",
     "gen/receivers.glsl": "app.pbgi.gpu_layout:receivers_glsl",
+    "gen/gbuffer.glsl": "app.pbgi.gpu_layout:gbuffer_glsl",
     "gen/materials.glsl": "app.pbgi.gpu_layout:materials_glsl",
     "gen/walk_state.glsl": "app.pbgi.gpu_layout:walk_state_glsl",
     "gen/pair_streams.glsl": "app.pbgi.gpu_layout:pair_streams_glsl",

@@ -9,8 +9,8 @@
 #define SCANLIGHT_BSH_TEXTURES_GLSL
 #include "gen/bsh_textures.glsl"
 
-vec4 tnode_sphere(uint i) { return texelFetch(bsh_sphere_tex, bsh_texel(i), 0); }   // (center, radius)
-vec4 tnode_cone(uint i) { return texelFetch(bsh_cone_tex, bsh_texel(i), 0); }       // (axis, cos_angle)
-uvec2 tnode_link(uint i) { return texelFetch(bsh_link_tex, bsh_texel(i), 0).xy; }   // (skip, count_flags)
-vec3 tnode_color(uint i) { return texelFetch(bsh_color_tex, bsh_texel(i), 0).rgb; }
+BshSphere tnode_sphere(uint i) { return bsh_sphere_unpack(texelFetch(bsh_sphere_tex, bsh_texel(i), 0)); }
+BshCone tnode_cone(uint i) { return bsh_cone_unpack(texelFetch(bsh_cone_tex, bsh_texel(i), 0)); }
+BshLink tnode_link(uint i) { return bsh_link_unpack(texelFetch(bsh_link_tex, bsh_texel(i), 0)); }
+vec3 tnode_color(uint i) { return bsh_color_unpack(texelFetch(bsh_color_tex, bsh_texel(i), 0)).color; }
 #endif

@@ -34,28 +34,28 @@
 // A's sub-tree.
 uint cut_decide(uint node, vec3 p, vec3 N, vec3 T, vec3 B, float omega_stop,
                 float omega_horizon, int m, out uvec4 rect, out uint skip) {
-    vec4 s = tnode_sphere(node);
-    uvec2 link = tnode_link(node);              // (skip, count | leaf bit)
-    vec3 dv = s.xyz - p;
+    BshSphere s = tnode_sphere(node);
+    BshLink link = tnode_link(node);
+    vec3 dv = s.center - p;
     float d2 = dot(dv, dv);
-    float r2 = s.w * s.w;
+    float r2 = s.radius * s.radius;
     float h = dot(dv, N);
-    bool leaf = (link.y & BSH_TEX_LEAF_BIT) != 0u;
-    skip = link.x;
+    bool leaf = (link.count_flags & BSH_TEX_LEAF_BIT) != 0u;
+    skip = link.skip;
     rect = uvec4(0u, 0u, uint(m - 1), uint(m - 1));
-    if (h <= -s.w) return CUT_SKIP;            // entirely below the horizon
+    if (h <= -s.radius) return CUT_SKIP;            // entirely below the horizon
     if (d2 > r2) {
         float inv_d = inversesqrt(d2);
-        float sin_b = s.w * inv_d;
+        float sin_b = s.radius * inv_d;
         float sin_b2 = sin_b * sin_b;
         float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
-        vec4 cone = tnode_cone(node);
-        float sin_a = sqrt(max(1.0 - cone.w * cone.w, 0.0));
-        float cos_ab = cone.w * cos_b - sin_a * sin_b;     // cos(alpha + b)
-        float sin_ab = sin_a * cos_b + cone.w * sin_b;     // sin(alpha + b)
-        if (cos_ab > 0.0 && dot(dv, cone.xyz) * inv_d > sin_ab) return CUT_SKIP;  // Fig. 5
+        BshCone cone = tnode_cone(node);
+        float sin_a = sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0));
+        float cos_ab = cone.cos_angle * cos_b - sin_a * sin_b;     // cos(alpha + b)
+        float sin_ab = sin_a * cos_b + cone.cos_angle * sin_b;     // sin(alpha + b)
+        if (cos_ab > 0.0 && dot(dv, cone.axis) * inv_d > sin_ab) return CUT_SKIP;  // Fig. 5
         float omega = TWO_PI * sin_b2 / (1.0 + cos_b);
-        float limit = abs(h) < s.w ? omega_horizon : omega_stop;
+        float limit = abs(h) < s.radius ? omega_horizon : omega_stop;
         if (leaf || omega <= limit) {
             vec3 l = vec3(dot(dv, T), dot(dv, B), h) * inv_d;
             rect = mb_cone_rect(l, sin_b, cos_b, m);
@@ -98,15 +98,15 @@ void cut_write(uint receiver, uint k, uint key, uint node) {
 
 // What the per-micro-pixel test needs about list entry k.
 MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
-    vec4 s = tnode_sphere(a);
-    vec4 cone = tnode_cone(a);
+    BshSphere s = tnode_sphere(a);
+    BshCone cone = tnode_cone(a);
     MbNode nd;
-    nd.dv = s.xyz - p;
+    nd.dv = s.center - p;
     nd.d2 = dot(nd.dv, nd.dv);
-    nd.r2 = s.w * s.w;
-    nd.axis = cone.xyz;
-    nd.sin_a = cone.w > 0.0 ? sqrt(max(1.0 - cone.w * cone.w, 0.0)) : 1.0;
-    nd.inv_area = inv_cell_area / float(max(tnode_link(a).y & BSH_TEX_COUNT_MASK, 1u));
+    nd.r2 = s.radius * s.radius;
+    nd.axis = cone.axis;
+    nd.sin_a = cone.cos_angle > 0.0 ? sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0)) : 1.0;
+    nd.inv_area = inv_cell_area / float(max(tnode_link(a).count_flags & BSH_TEX_COUNT_MASK, 1u));
     nd.index = a;
     return nd;
 }

@@ -21,12 +21,14 @@
 //   exceed albedo 1 at high roughness, and sheen and clearcoat are added on top of the base
 //   layer. Reciprocal: f(L, V) = f(V, L) for every term.
 //
-// Packing (13 floats, the order of app/material.py ALL_NAMES / SCALAR_PARAMS):
+// Packing (13 floats, the order of app/material.py ALL_NAMES / SCALAR_PARAMS, brdf.pack_params):
 //   v[0..2]  base_color.rgb
 //   v[3..12] subsurface, metallic, specular, specular_tint, roughness, anisotropic,
 //            sheen, sheen_tint, clearcoat, clearcoat_gloss
 //   as vec4s: a = (base_color.rgb, subsurface), b = (metallic, specular, specular_tint,
 //   roughness), c = (anisotropic, sheen, sheen_tint, clearcoat), d = clearcoat_gloss.
+// (The renderer's material table is not this packing: gen/materials.glsl's receiver_principled
+// builds the struct from a receiver and its material's row, app/pbgi/gpu_layout.py.)
 #ifndef SCANLIGHT_PRINCIPLED_GLSL
 #define SCANLIGHT_PRINCIPLED_GLSL
 #include "lib/common.glsl"

@@ -111,14 +111,14 @@ def look(position, at, size: int = 24, fov: float = 40.0) -> Camera:
 def reference_gbuffer(relighter, camera, material: Material, tile=None) -> dict:
     """The receivers of a render as a G-buffer for app.pbgi.reference (world coordinates)."""
     from app.pbgi.brdf import pack_params
+    from app.pbgi.gpu_layout import receiver_params
     gb = relighter.gbuffer.render(camera, [material], tile)
     rec = gb["receivers"].astype(np.float64)
     pos = rec[:, 0:3] + relighter.origin
     view = camera.position - pos
-    params = np.repeat(pack_params(material)[None], len(rec), axis=0)
-    params[:, 0:3] = rec[:, 12:15]
-    params[:, 4] = rec[:, 15]                       # metallic
-    params[:, 7] = rec[:, 11]                       # roughness
+    # the gather's rule: base colour, metallic and roughness (textured) from the receiver
+    params = receiver_params(np.repeat(pack_params(material)[None], len(rec), axis=0),
+                             gb["receivers"])
     pixel = np.ascontiguousarray(gb["receivers"][:, 3]).view(np.uint32)
     return {"position": pos, "normal": rec[:, 4:7], "view": view / np.linalg.norm(view, axis=1,
             keepdims=True), "tangent": rec[:, 8:11], "params": params, "pixel": pixel,

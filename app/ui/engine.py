@@ -15,7 +15,7 @@ connected in ``_connect_handlers`` (``app.settings.ChangeHandlers``), in this or
     files.photo (alone)            reload the photo
     view.cloud                     new splat colours; relight with that cloud (cheap set_cloud)
     files.asset                    load the mesh; new G-buffer geometry; Relighter.set_asset
-    asset.transform                re-place the mesh (no reload); set_asset
+    asset.transform                re-place the mesh (no reload); set_asset; its G-buffer
     view.fov_y                     the navigator's field of view
     camera                         the navigator follows the session's camera
     materials                      re-gather only (uniforms)
@@ -102,6 +102,7 @@ class ViewerEngine:
         self.timings: dict = {}
         self._last_camera_key = None
         self._room_dirty = True
+        self._gbuffer_dirty = True      # the asset's G-buffer alone (a new placement)
         self._composite_dirty = True
         self._asset_dirty = True
         self._gi_dirty = True
@@ -213,7 +214,7 @@ class ViewerEngine:
         self.view.set_asset(mesh)
         if self.relighter is not None:
             self.guard("uploading the asset", self.relighter.set_asset, mesh)
-        self._gi_dirty = True
+        self._gbuffer_dirty = self._gi_dirty = True
 
     def reset_materials(self) -> None:
         if self.asset is not None:
@@ -327,8 +328,14 @@ class ViewerEngine:
             self.view.draw_room(cam, self.session.settings["view.splat_scale"])
             self.view.draw_gbuffer(cam)
             self.timings["room_ms"] = (time.perf_counter() - t) * 1e3
-            self._room_dirty = False
+            self._room_dirty = self._gbuffer_dirty = False
             self._composite_dirty = info["room"] = True
+        elif self._gbuffer_dirty:
+            # the asset moved but not the camera: its silhouette and depth follow it, and the
+            # whole picture is re-composited (the room reappears where the asset was)
+            self.view.draw_gbuffer(cam)
+            self._gbuffer_dirty = False
+            self._composite_dirty = True
         if self._gi_dirty:
             self._restart_gi(cam)
         budget = self.session.settings["pbgi.frame_budget_ms"] if budget_ms is None else budget_ms

@@ -134,6 +134,28 @@ def test_each_change_key_has_its_handler(ctx, renders):
     assert len(renders) == n and not info["room"] and not info["gi"]
 
 
+def test_moving_the_asset_redraws_its_g_buffer(ctx, renders):
+    """A new placement (gizmo, transform fields) without a camera move: the picture shows the
+    asset where it now is, as a viewer opened on the moved asset would."""
+    from dataclasses import replace
+    e = make_engine(ctx)
+    e.frame()
+    e.finish_refinement()
+    moved = replace(e.session.transform,
+                    translate=tuple(np.add(e.session.transform.translate, (0.3, 0.0, 0.0))))
+    e.session.set_transform(moved)
+    info = e.frame()
+    e.finish_refinement()
+    assert not info["room"]                                     # the splats are not redrawn
+    s = small_session()
+    s.set_transform(moved)
+    fresh = make_engine(ctx, session=s)
+    fresh.frame()
+    fresh.finish_refinement()
+    np.testing.assert_array_equal(e.view.read_linear()[..., 3] > 0,
+                                  fresh.view.read_linear()[..., 3] > 0)
+
+
 def test_stats_skip_tiles_outside_the_silhouette(ctx, renders):
     """The PBGI panel shows the last gather that had receivers, not the zeros of an empty
     corner tile; a new mode shows at once even from an empty tile."""

@@ -32,10 +32,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from app.params import BY_KEY
 from app.pbgi.gpu_layout import (IMAGE, MB_BANDS, MB_DIRECTION, MB_EMPTY, MB_ENTRY, MB_FLUX,
                                  TEXTURE, dispatch_groups)
 
-MIN_SIZE, MAX_SIZE, DEFAULT_SIZE = 8, 32, 24
+# the micro-buffer sizes the shaders support: the range of the parameter table's pbgi.microbuffer
+MIN_SIZE, MAX_SIZE = int(BY_KEY["pbgi.microbuffer"].lo), int(BY_KEY["pbgi.microbuffer"].hi)
 ENTRY_BYTES = MB_ENTRY.nbytes       # RG32UI (depth key, node index)
 EMPTY = MB_EMPTY                    # empty key and node
 

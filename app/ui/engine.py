@@ -92,7 +92,6 @@ class ViewerEngine:
         self.asset: Asset | None = None
         self.mesh = None
         self.relighter = None
-        self.render_params_cls = RenderParams
         self.relighter_error: str | None = None
         self._lit_cloud = None
         self.gi = ProgressiveGI(self._render_gi)
@@ -407,10 +406,7 @@ class ViewerEngine:
 
     def _render_gi(self, camera: Camera, tile) -> np.ndarray:
         s = self.session.settings
-        params = self.render_params_cls(mode=s["pbgi.mode"], microbuffer=s["pbgi.microbuffer"],
-                                        omega_tr_factor=s["pbgi.omega_tr_factor"],
-                                        parallax_tolerance=s["pbgi.parallax_tolerance"],
-                                        memory_budget_mb=s["pbgi.memory_budget_mb"])
+        params = RenderParams.from_settings(s)
         try:
             res = self.relighter.render(camera, self.session.materials, params, tile=tile)
         except Exception as exc:

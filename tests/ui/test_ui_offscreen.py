@@ -62,7 +62,6 @@ def test_cli_offscreen_screenshot_is_what_the_engine_draws(tmp_path):
     """The documented command, end to end, in a fresh process: the classic reference again."""
     out = tmp_path / "cli.png"
     env = dict(os.environ, PYTHONPATH=str(ROOT), SCANLIGHT_CONFIG=str(tmp_path / "cfg"))
-    env.pop("SCANLIGHT_RELIGHTER", None)
     cmd = [sys.executable, "-m", "app", "view", "--offscreen", "--session",
            str(_session_file(tmp_path)), "--frames", "3", "--screenshot", str(out), "--size", SIZE]
     res = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)

@@ -2,11 +2,12 @@
 project's own tooling through the viewer's automation option.
 
     scanlight view --size 1280x800 --script app/ui/screenshot.py \
-        --script-arg out=assets/screenshot.png [--script-arg expand=no] [--script-arg face=256]
+        --script-arg out=assets/screenshot.png [--script-arg expand=no]
     python -m app.ui.screenshot [--out assets/screenshot.png] [--size 1280x800] [--no-expand]
     (packaging/screenshot.sh runs the first under Xvfb when there is no display)
 
-This file is the ``--script``: it runs the HDR expansion from the demo's capture camera (shown
+This file is the ``--script``: it runs the HDR expansion from the demo's capture camera with the
+viewer's settings, as a user pressing "Run expansion" would (shown
 with the expansion's report in the HDR panel), lets the progressive refinement of the relit asset
 finish, then saves the window's framebuffer and quits. ``main`` starts ``scanlight view`` with
 it, re-running itself under xvfb-run without a display.
@@ -27,7 +28,7 @@ state = {"step": 0, "since": 0}
 
 
 def _options(viewer) -> dict:
-    opts = {"out": "assets/screenshot.png", "expand": "yes", "face": "256"}
+    opts = {"out": "assets/screenshot.png", "expand": "yes"}
     for arg in viewer.script_args:
         key, sep, value = arg.partition("=")
         if not sep or key not in opts:
@@ -50,7 +51,6 @@ def on_frame(viewer, frame):
     opts = state["opts"]
     if state["step"] == 0 and frame >= 2:
         if opts["expand"] not in ("no", "0", "false"):
-            viewer.session.settings.set("hdr.face_size", int(opts["face"]))
             viewer.start_expansion(synchronous=True)
             viewer.poll_expansion()
         state["step"], state["since"] = 1, frame
@@ -71,7 +71,6 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="assets/screenshot.png")
     p.add_argument("--size", default="1280x800")
     p.add_argument("--no-expand", action="store_true", help="skip the HDR expansion")
-    p.add_argument("--face-size", type=int, default=256, help="cube-map face size of the expansion")
     args = p.parse_args(argv)
     if not os.environ.get("DISPLAY"):
         if not shutil.which("xvfb-run"):
@@ -84,8 +83,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     rc = scanlight(["view", "--size", args.size, "--script", __file__,
                     "--script-arg", f"out={out}",
-                    "--script-arg", f"expand={'no' if args.no_expand else 'yes'}",
-                    "--script-arg", f"face={args.face_size}"])
+                    "--script-arg", f"expand={'no' if args.no_expand else 'yes'}"])
     return rc or (0 if out.is_file() else 1)
 
 

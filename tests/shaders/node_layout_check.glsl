@@ -1,4 +1,4 @@
-// Test shader for the generated BSH node layout (tests/test_bsh_glsl.py): the GLSL side of the
+// Test shader for the generated BSH node layout (tests/bsh/test_bsh_glsl.py): the GLSL side of the
 // "numpy and GLSL read the same records" check.
 //   MODE 0: one invocation per node; writes the fields load_node() decodes, as raw 32-bit words,
 //           plus a bit mask saying whether the single-field helpers agree with load_node().

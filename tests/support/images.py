@@ -1,4 +1,4 @@
-"""Image regression helper for the viewer's screenshot tests (see tests/references/README.md).
+"""Image regression helper for the viewer's screenshot tests (see tests/ui/references/README.md).
 
 Metric, on 8-bit sRGB images of the same size: ``mean`` = mean absolute difference over all
 channels, in 8-bit steps; ``bad`` = fraction of pixels whose largest channel difference exceeds

@@ -1,4 +1,4 @@
-"""Small analytic scenes for the PBGI tests (not a test module: imported by tests/test_pbgi_*.py)."""
+"""Small analytic scenes for the PBGI tests (not a test module: imported by tests/pbgi/test_pbgi_*.py)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """`scanlight view --offscreen`: batch screenshots of the demo scene against reference images.
 
 Metric and tolerance: tests/support/images.py (mean |diff| <= 0.5 of 255, <= 0.2% pixels off by > 16).
-Regenerate on purpose with SCANLIGHT_UPDATE_REFERENCES=1 (tests/references/README.md).
+Regenerate on purpose with SCANLIGHT_UPDATE_REFERENCES=1 (tests/ui/references/README.md).
 """
 
 from __future__ import annotations

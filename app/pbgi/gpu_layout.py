@@ -455,7 +455,7 @@ def pair_streams_glsl() -> str:
     finishing walk; the refinement declares ``counters[]`` itself (PAIR_COUNTERS)."""
     return f"""{_banner("pair_streams_glsl", "PAIR_COUNTERS, PAIR, ITEM or HEAD")}
 // The two streams of Mipmapped/Hybrid PBGI (app/pbgi/mipmapped.py), in images (llvmpipe loads
-// image texels ~10x faster than SSBO words), element g at texel mip_texel(g):
+// image texels as vector gathers, SSBO words with a scalar loop per lane), element g at texel mip_texel(g):
 //   pairs ({PAIR.image_format}): the pending (node, pyramid pixel) pairs, a stack;
 //   items ({ITEM.image_format}): the second stream, sub-tree roots for the finishing walk;
 //   heads ({HEAD.image_format}): per pyramid pixel, the first item of its list or NIL.
@@ -492,8 +492,8 @@ def mip_glsl() -> str:
     """``gen/mip.glsl``: the G-buffer pyramid's images (app/pbgi/gmip.py). Define MIP_WRITABLE
     where the geometry is written (the pyramid build)."""
     return f"""{_banner("mip_glsl", "MIP_SPHERE, MIP_CONE or MIP_LINK")}
-// The G-buffer pyramid (app/pbgi/gmip.py), in images (llvmpipe loads image texels ~10x faster
-// than SSBO words). Pixel g lives at texel mip_texel(g) of three images:
+// The G-buffer pyramid (app/pbgi/gmip.py), in images (llvmpipe loads image texels as vector
+// gathers, SSBO words with a scalar loop per lane). Pixel g lives at texel mip_texel(g) of three images:
 //   mip_sphere ({MIP_SPHERE.image_format}):
 {MIP_SPHERE.glsl_comment("//     ")}
 //   mip_cone ({MIP_CONE.image_format}):

@@ -1,5 +1,5 @@
 """The texture view of the BSH that the per-pixel walks read (see shaders/lib/bsh_textures.glsl
-for why textures: llvmpipe fetches texels ~16x faster than it loads SSBO words).
+for why textures: llvmpipe fetches texels as vector gathers, SSBO words one lane at a time).
 
 Built on the GPU from the uploaded 40-byte records by shaders/bsh_textures.glsl, which decodes
 them through the generated layout header, so the record format is still defined only in

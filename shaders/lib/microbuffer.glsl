@@ -2,7 +2,7 @@
 // Storage: an RG32UI image, row i = receiver i of the batch, texel k = entry k: MbEntry (depth key,
 // node index), empty = (MB_EMPTY, MB_EMPTY); texels and tables are declared in
 // app/pbgi/gpu_layout.py (gen/microbuffer.glsl). (An image rather than an SSBO: llvmpipe reads
-// and writes images 4-7x faster.) Grid pixel (x, y) covers the square [-1 + 2x/M, -1 + 2(x+1)/M]
+// and writes image texels as vectors, SSBO words lane by lane.) Grid pixel (x, y) covers the square [-1 + 2x/M, -1 + 2(x+1)/M]
 // x [-1 + 2y/M, ...] of the Nusselt disc. Its entries: k = y * M + x (the band nearest the
 // horizon - every grid pixel has it, zero weight outside the disc) and, for pixels near the rim
 // that span too much elevation, further bands mb_pixel_bands(x, y).x + 0, 1, ... (see

@@ -1,6 +1,6 @@
 // Empties the micro-buffers of a batch: every texel of the first u_count rows becomes MB_EMPTY.
 // One invocation per row, a loop along it: on llvmpipe an invocation costs far more than a loop
-// iteration (one invocation per texel took ~4x as long), and E <= 2,000 stays well below the
+// iteration (one invocation per texel pays the dispatch overhead per texel), and E <= 2,000 stays well below the
 // 65,535 iterations an invocation may run.
 #include "lib/microbuffer.glsl"
 layout(local_size_x = WORKGROUP_SIZE) in;

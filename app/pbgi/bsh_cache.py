@@ -3,7 +3,7 @@
 ``room.ply`` -> ``room.ply.bsh-<key>.npz``. The key is a SHA-256 over the cloud's content
 (positions, normals, colours as stored in memory), the build parameters with their defaults
 filled in, and the record layout and file format versions: a changed cloud or parameter gives a
-different file name, so a stale cache is never read. Hashing 3M points costs ~0.1 s.
+different file name, so a stale cache is never read. Hashing is linear in the points and small next to a build.
 
 Writes go to a temporary file in the same folder, then ``os.replace`` (atomic): a crash never
 leaves a half-written cache under the final name. A cache that cannot be read (truncated,

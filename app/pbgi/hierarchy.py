@@ -326,7 +326,7 @@ def _leaf_chunk(V, ps, nrm, col, st, leaf_floor):
     fc = cnt.astype(np.float64)
     lid = np.repeat(np.arange(len(st)), cnt)
 
-    def sums(x):  # per-cell sums (bincount beats add.reduceat ~3x)
+    def sums(x):  # per-cell sums (bincount: one pass, no sorted segments needed)
         return np.bincount(lid, weights=x, minlength=len(st))
 
     V[CNT] = fc

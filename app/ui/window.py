@@ -30,6 +30,8 @@ from app.errors import ScanlightError
 from app.pbgi.renderer import Relighter
 from app.settings import Session, save_last_session
 from app.ui.engine import ViewerEngine
+from app.ui.panels.hdr import PHOTO
+from app.ui.textures import PanelTextures
 
 log = logging.getLogger(__name__)
 
@@ -74,8 +76,7 @@ class ViewerWindow:
         self.fly = False
         self.gizmo_op = "translate"
         self.selected_capture = 0 if session.capture_cameras else -1
-        self.capture_texture = None
-        self.photo_texture = None
+        self.textures = PanelTextures(self.ctx, self.imgui)
         self.hdr_task = None
         self.hdr_report: dict | None = None
         self.pending_screenshot: str | None = None
@@ -212,7 +213,7 @@ class ViewerWindow:
         if open_into(self.session, path) == "session":
             self.load_session(path)
         else:
-            self.photo_texture = None
+            self.textures.drop(PHOTO)
 
     def load_session(self, path) -> None:
         from app.settings import load_session
@@ -228,7 +229,7 @@ class ViewerWindow:
                                    relighter=self.relighter_factory)
         old_engine.release()
         self.selected_capture = 0 if new.capture_cameras else -1
-        self.capture_texture = self.photo_texture = None
+        self.textures.clear()
 
     def save_session(self, path) -> None:
         s = self.session
@@ -289,7 +290,7 @@ class ViewerWindow:
         if t.state == "done":
             self.hdr_report = t.result.report
             self.engine.set_hdr_cloud(t.result.cloud, None)
-            self.photo_texture = None
+            self.textures.drop(PHOTO)
             self.engine.error(f"HDR expansion done in {t.seconds:.1f} s "
                               f"(alpha = {t.result.report.get('alpha')})", "info")
         elif t.state == "failed":
@@ -329,6 +330,7 @@ class ViewerWindow:
         imgui.render()
         self.wnd.use()
         self.imgui.render(imgui.get_draw_data())
+        self.textures.end_frame()          # textures dropped during the frame, now unused
         if self.pending_screenshot and not self.engine.gi.refining:
             path, self.pending_screenshot = self.pending_screenshot, None
             files = self.engine.guard("saving the screenshot", self.engine.screenshot, path)

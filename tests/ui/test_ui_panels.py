@@ -14,10 +14,13 @@ from imgui_bundle import imgui, imguizmo  # noqa: E402
 
 
 class _Renderer:
-    """Stands in for the imgui GL renderer: only texture registration is used by panels."""
+    """Stands in for the imgui GL renderer: texture registration, and at render time the check
+    moderngl-window's renderer makes - every texture a draw command names must be registered
+    (else it raises "Texture N is not registered", which closed the window)."""
 
     def __init__(self):
         self.textures = {}
+        self.drawn = set()
 
     def register_texture(self, tex):
         self.textures[tex.glo] = tex
@@ -25,12 +28,23 @@ class _Renderer:
     def remove_texture(self, tex):
         del self.textures[tex.glo]
 
+    def render(self, draw_data):
+        font = imgui.get_io().fonts.tex_id
+        for i in range(draw_data.cmd_lists_count):
+            for cmd in draw_data.cmd_lists[i].cmd_buffer:
+                tid = cmd.get_tex_id()
+                if tid != font:
+                    assert tid in self.textures, f"Texture {tid} is not registered"
+                    assert self.textures[tid].glo == tid   # still alive
+                    self.drawn.add(tid)
+
 
 @pytest.fixture
 def ui(ctx, monkeypatch):
     from tests.support.viewer import small_session, spy_renders
     from app.ui.engine import ViewerEngine
     from app.ui.filedialog import FileDialog
+    from app.ui.textures import PanelTextures
     from app.ui.window import ViewerWindow
     from app.pbgi.renderer import Relighter
     calls = spy_renders(monkeypatch)           # the real renderer, micro-buffer 8
@@ -41,7 +55,8 @@ def ui(ctx, monkeypatch):
     w.engine, w.session, w.ctx = engine, engine.session, ctx
     w.imgui, w.dialog = _Renderer(), FileDialog()
     w.selected_capture, w.gizmo_op, w.fly = 0, "translate", False
-    w.capture_texture = w.photo_texture = w.hdr_task = None
+    w.hdr_task = None
+    w.textures = PanelTextures(ctx, w.imgui)
     w.hdr_report = {"alpha": 0.9, "counts": {"overexposed": 10, "expanded_by_projection": 8,
                                              "filled_by_poisson": 2, "unresolved": 0},
                     "warnings": ["a warning"]}
@@ -66,6 +81,8 @@ def _draw(ui, frames=3):
         panels.draw(ui)
         ui.dialog.draw()
         imgui.render()
+        ui.imgui.render(imgui.get_draw_data())   # as the window does, then frees what panels
+        ui.textures.end_frame()                  # dropped during the frame
     return imgui.get_draw_data()
 
 
@@ -78,7 +95,47 @@ def test_every_panel_draws_without_errors(ui, monkeypatch):
     data = _draw(ui)
     assert not ui.engine.messages, [m.text for m in ui.engine.messages]
     assert data.cmd_lists_count >= 2                   # panel column + stats box (+ overlays)
-    assert ui.photo_texture is not None and ui.photo_texture.glo in ui.imgui.textures
+    from app.ui.panels.hdr import PHOTO
+    photo = ui.textures.get(PHOTO)
+    assert photo is not None and photo.glo in ui.imgui.textures
+
+
+def test_run_expansion_keeps_the_photo_texture_until_the_frame_is_drawn(ui, monkeypatch):
+    """Regression: "Run expansion" dropped the photo thumbnail after imgui.image() had queued
+    it, and the renderer found an unregistered texture at the end of the frame (the window
+    closed, every time). The texture must outlive the frame, then be freed."""
+    from app.ui import panels
+    from app.ui.panels.hdr import PHOTO
+    monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {t for t, _ in panels.SECTIONS})
+    _draw(ui, 1)
+    before = ui.textures.get(PHOTO)
+    assert before is not None and before.glo in ui.imgui.drawn
+    started = []
+    monkeypatch.setattr(ui, "start_expansion", lambda: started.append(True), raising=False)
+    real_button = imgui.button
+    monkeypatch.setattr(imgui, "button", lambda label, *a: label == "Run expansion"
+                        or real_button(label, *a))
+    _draw(ui, 1)                      # the click frame: the renderer's check runs inside
+    assert started == [True]
+    assert before.glo not in ui.imgui.textures and ui.textures.retired == 0   # freed after it
+    monkeypatch.setattr(imgui, "button", real_button)
+    _draw(ui, 1)                      # the thumbnail comes back, a new texture
+    after = ui.textures.get(PHOTO)
+    assert after is not None and after.glo in ui.imgui.textures
+
+
+def test_panel_textures_outlive_the_frame_they_are_dropped_in(ctx):
+    """drop() and clear() retire; only end_frame() unregisters and frees."""
+    from app.ui.textures import PanelTextures
+    r = _Renderer()
+    tex = PanelTextures(ctx, r)
+    a = tex.set("a", np.zeros((4, 4, 3), np.uint8))
+    b = tex.set("a", np.ones((4, 4, 3), np.uint8))      # replaces a: a is retired, not freed
+    assert tex.get("a") is b and a.glo in r.textures and tex.retired == 1
+    tex.clear()
+    assert tex.get("a") is None and b.glo in r.textures and tex.retired == 2
+    tex.end_frame()
+    assert r.textures == {} and tex.retired == 0
 
 
 def test_file_dialog_browses_and_returns_a_path(ui, tmp_path):

@@ -119,9 +119,11 @@ def test_gizmo_and_mouse_navigation(run):
 
 
 def test_expansion_runs_while_the_window_keeps_drawing(run):
-    """Run pressed: the frame loop kept going (frames drawn while the job ran, none frozen), the
-    progress was on screen, and the result switched the room to HDR."""
+    """Run pressed in the HDR panel: the window survived that frame (it used to close with
+    "Texture N is not registered"), the frame loop kept going (frames drawn while the job ran,
+    none frozen), the progress was on screen, and the result switched the room to HDR."""
     tmp, result = run
+    assert result["pressed"] == "Run expansion"
     # Bound: 4x the median frame interval before the job + 1 s. The job and the window share two
     # cores; a frozen loop (job on the main thread, GIL held for seconds) would exceed it.
     assert result["job_frames"] >= 5

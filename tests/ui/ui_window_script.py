@@ -37,6 +37,24 @@ def shoot(viewer, name):
                                       "messages": [m.text for m in e.messages]}
 
 
+def press_once(label, res):
+    """The next frame's imgui.button(label) answers True once, as a click would; the panel that
+    holds it is opened."""
+    from imgui_bundle import imgui
+
+    from app.ui import panels
+    real = imgui.button
+    panels.OPEN_BY_DEFAULT = set(panels.OPEN_BY_DEFAULT) | {"HDR expansion"}
+
+    def button(text, *a):
+        if text == label:
+            imgui.button = real
+            res["pressed"] = label
+            return True
+        return real(text, *a)
+    imgui.button = button
+
+
 def on_frame(viewer, frame):
     if not args:
         args.update(a.split("=", 1) for a in viewer.script_args)
@@ -86,16 +104,20 @@ def on_frame(viewer, frame):
         viewer.wnd.mouse_states.left = False
         res["yaw_change_over_panel"] = e.nav.yaw - yaw
         res["frame_ms_median"] = sorted(e.frame_ms)[len(e.frame_ms) // 2]
-        # the HDR expansion in the background (the Run button's action)
+        # the HDR expansion in the background, started by the HDR panel's own "Run expansion"
+        # button (its click answered once): that frame used to close the window, because the
+        # panel freed the photo thumbnail it had just queued for drawing
         s.settings.set("hdr.face_size", 64)
-        viewer.start_expansion()
+        press_once("Run expansion", res)
         state["job_frames"], state["job_ms"] = 0, []
         res["interval_ms_median_before_job"] = sorted(viewer.frame_intervals)[
             len(viewer.frame_intervals) // 2]
         st = 6
     elif st == 6:
         task = viewer.hdr_task
-        if task is not None and task.running:
+        if task is None and "pressed" not in res:
+            pass                                        # the press happens in the next frame
+        elif task is not None and task.running:
             e.nav.orbit(2, 0)                           # keep the viewer busy meanwhile
             state["job_frames"] += 1
             state["job_ms"].append(viewer.frame_intervals[-1])

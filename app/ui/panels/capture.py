@@ -9,21 +9,7 @@ from app.settings import CaptureCamera
 from app.ui.widgets import tooltip
 
 PREVIEW_FACE = 64
-
-
-def _texture(ui, rgb: np.ndarray):
-    """An imgui-registered RGBA8 texture from (H, W, 3) uint8 (top row first)."""
-    h, w = rgb.shape[:2]
-    rgba = np.concatenate([rgb, np.full((h, w, 1), 255, np.uint8)], axis=-1)
-    tex = ui.ctx.texture((w, h), 4, np.ascontiguousarray(rgba).tobytes())
-    ui.imgui.register_texture(tex)
-    return tex
-
-
-def release(ui, tex) -> None:
-    if tex is not None:
-        ui.imgui.remove_texture(tex)
-        tex.release()
+PREVIEW = "capture preview"   # its texture's name in ui.textures (app/ui/textures.py)
 
 
 def draw(ui) -> None:
@@ -45,8 +31,7 @@ def draw(ui) -> None:
     for i, c in enumerate(cams):
         if imgui.selectable(f"{c.name}##{i}", i == ui.selected_capture)[0]:
             ui.selected_capture = i
-            release(ui, ui.capture_texture)
-            ui.capture_texture = None
+            ui.textures.drop(PREVIEW)
     imgui.end_child()
     i = ui.selected_capture
     if not 0 <= i < len(cams):
@@ -60,8 +45,7 @@ def draw(ui) -> None:
     if changed:
         cams[i] = CaptureCamera(cams[i].name, tuple(pos))
         s.set_capture_cameras(list(cams))
-        release(ui, ui.capture_texture)
-        ui.capture_texture = None
+        ui.textures.drop(PREVIEW)
     if imgui.button("move to"):
         centre, _ = e.asset_sphere()
         target = centre if np.linalg.norm(centre - np.asarray(c.position)) > 1e-6 else \
@@ -71,17 +55,16 @@ def draw(ui) -> None:
     if imgui.button("delete"):
         s.set_capture_cameras(cams[:i] + cams[i + 1:])
         ui.selected_capture = min(i, len(s.capture_cameras) - 1)
-        release(ui, ui.capture_texture)
-        ui.capture_texture = None
+        ui.textures.drop(PREVIEW)
         return
     imgui.same_line()
     if imgui.button("preview cube map"):
         img = e.guard("rendering the cube-map preview", e.capture_preview, c.position, PREVIEW_FACE)
         if img is not None:
-            release(ui, ui.capture_texture)
-            ui.capture_texture = _texture(ui, img)
-    if ui.capture_texture is not None:
-        tw, th = ui.capture_texture.size
+            ui.textures.set(PREVIEW, img)
+    tex = ui.textures.get(PREVIEW)
+    if tex is not None:
+        tw, th = tex.size
         avail = imgui.get_content_region_avail().x
-        imgui.image(ui.capture_texture.glo, (avail, avail * th / tw))
+        imgui.image(tex.glo, (avail, avail * th / tw))
         tooltip("-X, -Z, +X, +Z around the middle row; up (+Y) above and down (-Y) below -Z")

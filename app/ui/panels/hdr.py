@@ -8,10 +8,10 @@ from imgui_bundle import imgui
 
 from app.params import BY_KEY
 from app.ui import widgets
-from app.ui.panels.capture import _texture, release
 from app.ui.widgets import tooltip
 
 THUMB = 256
+PHOTO = "photo"   # the thumbnail's name in ui.textures (app/ui/textures.py)
 
 
 def _photo_thumbnail(ui):
@@ -23,7 +23,7 @@ def _photo_thumbnail(ui):
     alpha = (ui.hdr_report or {}).get("alpha")
     # Shown as the scan saw it when the exposure is known (alpha x photo), else as is.
     ev = float(np.log2(alpha)) if alpha else ui.session.settings["view.exposure"]
-    return _texture(ui, tonemap_to_srgb8(small, ev))
+    return ui.textures.set(PHOTO, tonemap_to_srgb8(small, ev))
 
 
 def draw(ui) -> None:
@@ -31,11 +31,10 @@ def draw(ui) -> None:
     if e.photo is None:
         imgui.text_disabled("no HDR photo: open one in the Scene panel")
     else:
-        if ui.photo_texture is None:
-            ui.photo_texture = _photo_thumbnail(ui)
-        tw, th = ui.photo_texture.size
+        tex = ui.textures.get(PHOTO) or _photo_thumbnail(ui)
+        tw, th = tex.size
         avail = imgui.get_content_region_avail().x
-        imgui.image(ui.photo_texture.glo, (avail, avail * th / tw))
+        imgui.image(tex.glo, (avail, avail * th / tw))
         alpha = (ui.hdr_report or {}).get("alpha")
         imgui.text(f"exposure found: alpha = {alpha:.4g} ({np.log2(alpha):+.2f} EV)" if alpha
                    else "exposure: found when the expansion runs")
@@ -59,8 +58,7 @@ def draw(ui) -> None:
         imgui.begin_disabled(e.photo is None or not s.capture_cameras)
         if imgui.button("Run expansion"):
             e.guard("starting the HDR expansion", ui.start_expansion)
-            release(ui, ui.photo_texture)
-            ui.photo_texture = None
+            ui.textures.drop(PHOTO)   # re-made with the alpha found; freed after this frame
         imgui.end_disabled()
         tooltip("Runs in the background; the viewport stays interactive.")
     if e.cloud is not None and e.cloud.hdr is not None:

@@ -18,14 +18,23 @@
 //                     taps whose bilinear weight is 0 are ignored; with no usable tap, the mean
 //                     of whichever of the four taps are asset (thin parts at low res);
 //   else           =  the room's splat colour, or the background where no splat landed.
-// Outputs: the linear composite (RGBA32F, for EXR screenshots) and the display image (RGBA8:
-// radiance x 2^EV, tone mapped, sRGB encoded). u_raw shows room colours as they are (false
+// Outputs: the linear composite (COMPOSITE_TEXEL, for EXR screenshots) and the display image
+// (RGBA8: radiance x 2^EV, tone mapped, sRGB encoded). u_raw shows room colours as they are (false
 // colour difference maps). u_unavailable hatches the asset and overlays u_label (a text image).
+//
+// Texture and image units, the texel records (RoomTexel, GuideTexel, GiTexel, CompositeTexel)
+// and the work-group size are declared in app/render/gpu_layout.py; gen/viewer_composite.glsl
+// declares the samplers u_room ... u_label, the images u_linear and u_display, and room_at,
+// guide_at, gi_at, composite_store.
 
 #ifdef COMPUTE_SHADER
-layout(local_size_x = 8, local_size_y = 8) in;
-
+#ifdef LABEL_PASS
+#define VIEW_DISPLAY_READABLE 1
+#endif
+#include "gen/viewer_composite.glsl"
 #include "lib/tonemap.glsl"
+
+layout(local_size_x = VIEW_TILE, local_size_y = VIEW_TILE) in;
 
 // Weights of the joint bilateral upsampling, injected from app/ui/composite.py (defaults here
 // only so the file compiles on its own).
@@ -38,18 +47,12 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #ifndef OFF_GUIDE_WEIGHT
 #define OFF_GUIDE_WEIGHT 0.05
 #endif
-
-layout(binding = 0) uniform sampler2D u_room;        // rgb radiance, a = splat coverage
-layout(binding = 1) uniform sampler2D u_room_depth;  // window depth of the splats
-layout(binding = 2) uniform sampler2D u_gbuf;        // asset normal.xyz, eye depth (0 = empty)
-layout(binding = 3) uniform sampler2D u_preview;     // reduced-resolution GI, a = 1 asset
-layout(binding = 4) uniform sampler2D u_full;        // layer-resolution GI, a < 0 = not yet
-layout(binding = 5) uniform sampler2D u_label;       // rgba8 text image
-layout(rgba32f, binding = 0) writeonly uniform image2D u_linear;
-#ifdef LABEL_PASS
-layout(rgba8, binding = 1) uniform image2D u_display;
-#else
-layout(rgba8, binding = 1) writeonly uniform image2D u_display;
+// The asset wins ties with the room within ROOM_DEPTH_SCALE x + ROOM_DEPTH_BIAS (injected too).
+#ifndef ROOM_DEPTH_SCALE
+#define ROOM_DEPTH_SCALE 1.002
+#endif
+#ifndef ROOM_DEPTH_BIAS
+#define ROOM_DEPTH_BIAS 1e-3
 #endif
 
 uniform ivec2 u_size;
@@ -85,20 +88,20 @@ vec4 upsample(sampler2D tex, ivec2 lo, ivec2 p, vec3 n_p, float z_p, out bool pe
             float wb = (dx == 0 ? 1.0 - f.x : f.x) * (dy == 0 ? 1.0 - f.y : f.y);
             if (wb <= 0.0) continue;
             ivec2 t = clamp(i0 + ivec2(dx, dy), ivec2(0), lo - 1);
-            vec4 s = texelFetch(tex, t, 0);
-            if (s.a < 0.0) { pending = true; continue; }
-            if (s.a < 0.5) continue;
+            GiTexel s = gi_at(tex, t);
+            if (s.status < 0.0) { pending = true; continue; }
+            if (s.status < 0.5) continue;
             ivec2 g = clamp(ivec2((vec2(t) + 0.5) * vec2(u_size) / vec2(lo)), ivec2(0), u_size - 1);
-            vec4 gq = texelFetch(u_gbuf, g, 0);
+            GuideTexel gq = guide_at(g);
             float w = wb;
-            if (gq.w > 0.0) {
-                w *= exp(-NORMAL_SHARPNESS * (1.0 - clamp(dot(n_p, gq.xyz), -1.0, 1.0)));
-                w *= exp(-abs(gq.w - z_p) / (DEPTH_TOLERANCE * z_p + 1e-4));
+            if (gq.depth > 0.0) {
+                w *= exp(-NORMAL_SHARPNESS * (1.0 - clamp(dot(n_p, gq.normal), -1.0, 1.0)));
+                w *= exp(-abs(gq.depth - z_p) / (DEPTH_TOLERANCE * z_p + 1e-4));
             } else {
                 w *= OFF_GUIDE_WEIGHT;  // the tap's centre misses the rasterised asset: a weak vote
             }
             w = max(w, 1e-6 * wb);
-            acc += w * s.rgb;
+            acc += w * s.radiance;
             wsum += w;
         }
     }
@@ -107,8 +110,8 @@ vec4 upsample(sampler2D tex, ivec2 lo, ivec2 p, vec3 n_p, float z_p, out bool pe
     // among the four, whatever their bilinear weight.
     for (int k = 0; k < 4; ++k) {
         ivec2 t = clamp(i0 + ivec2(k & 1, k >> 1), ivec2(0), lo - 1);
-        vec4 s = texelFetch(tex, t, 0);
-        if (s.a >= 0.5) { acc += s.rgb; wsum += 1.0; }
+        GiTexel s = gi_at(tex, t);
+        if (s.status >= 0.5) { acc += s.radiance; wsum += 1.0; }
     }
     return vec4(acc, wsum);
 }
@@ -128,24 +131,24 @@ void main() {
     vec4 shown = imageLoad(u_display, p);
     imageStore(u_display, p, vec4(mix(shown.rgb, t.rgb, t.a), 1.0));
 #else
-    vec4 room = texelFetch(u_room, p, 0);
-    vec3 room_rgb = room.a > 0.0 ? room.rgb : u_background;
+    RoomTexel room = room_at(p);
+    vec3 room_rgb = room.coverage > 0.0 ? room.radiance : u_background;
     vec3 out_rgb = room_rgb;
     bool asset = false;
 #ifdef ASSET_PASS
-    vec4 g = texelFetch(u_gbuf, p, 0);
-    if (g.w > 0.0) {
-        float room_z = room.a > 0.0 ? linear_depth(texelFetch(u_room_depth, p, 0).r) : 1e30;
-        if (g.w <= room_z * 1.002 + 1e-3) {
+    GuideTexel g = guide_at(p);
+    if (g.depth > 0.0) {
+        float room_z = room.coverage > 0.0 ? linear_depth(texelFetch(u_room_depth, p, 0).r) : 1e30;
+        if (g.depth <= room_z * ROOM_DEPTH_SCALE + ROOM_DEPTH_BIAS) {
             if (u_unavailable != 0) {
                 asset = true;
                 out_rgb = vec3(((p.x + p.y) / 6) % 2 == 0 ? 0.10 : 0.16);
             } else {
                 bool pending;
-                vec4 c = upsample(u_full, u_full_size, p, g.xyz, g.w, pending);
+                vec4 c = upsample(u_full, u_full_size, p, g.normal, g.depth, pending);
                 if (pending || c.w <= 0.0) {
                     bool unused;
-                    c = upsample(u_preview, u_preview_size, p, g.xyz, g.w, unused);
+                    c = upsample(u_preview, u_preview_size, p, g.normal, g.depth, unused);
                 }
                 if (c.w > 0.0) {
                     asset = true;
@@ -155,7 +158,7 @@ void main() {
         }
     }
 #endif
-    imageStore(u_linear, p, vec4(out_rgb, asset ? 1.0 : 0.0));
+    composite_store(p, CompositeTexel(out_rgb, asset ? 1.0 : 0.0));
     imageStore(u_display, p, vec4(display(out_rgb, u_raw_room != 0 && !asset), 1.0));
 #endif
 }

@@ -1,12 +1,14 @@
 // The viewer's asset G-buffer: shading normal and eye distance per pixel, rasterised at the
 // full viewport resolution every frame (cheap). It guides the joint bilateral upsampling of the
 // reduced-resolution GI (viewer_composite.glsl) and depth-tests the asset against the room.
-// Target: RGBA32F (normal.xyz, eye depth along -z in metres); cleared to 0, so w > 0 = covered.
+// Target: GUIDE_TEXEL (RGBA32F: normal, eye depth along -z in metres); cleared to 0, so
+// depth > 0 = covered.
 // Positions arrive relative to an origin (float64 shift on the CPU), as in splat.glsl.
+// Vertex inputs (VIEWER_VERTEX) and the output texel (GUIDE_TEXEL) are declared in
+// app/render/gpu_layout.py; gen/viewer_gbuffer.glsl declares in_position, in_normal, out_guide.
+#include "gen/viewer_gbuffer.glsl"
 
 #ifdef VERTEX_SHADER
-layout(location = 0) in vec3 in_position;
-layout(location = 1) in vec3 in_normal;
 uniform mat4 u_view;
 uniform mat4 u_proj;
 out vec3 v_normal;
@@ -22,8 +24,7 @@ void main() {
 #ifdef FRAGMENT_SHADER
 in vec3 v_normal;
 in float v_depth;
-layout(location = 0) out vec4 out_gbuf;
 void main() {
-    out_gbuf = vec4(normalize(v_normal), max(v_depth, 1e-6));
+    out_guide = guide_texel_pack(GuideTexel(normalize(v_normal), max(v_depth, 1e-6)));
 }
 #endif

@@ -26,7 +26,8 @@ What the generated GLSL can be (each record picks what its users need):
   atomics (counters);
 * a struct used as the SSBO element itself: valid std430 when every field is a 32-bit scalar
   (``std430_struct_ok``), so the struct *is* the layout;
-* ``glsl_vertex_inputs`` / ``vertex_format``: a vertex buffer's attributes and moderngl format.
+* ``glsl_vertex_inputs`` / ``vertex_format``: a vertex buffer's attributes and moderngl format
+  (``vertex_content`` / ``field_array``: the same record kept in one buffer per field).
 
 Texel records also give their texture's components, moderngl dtype and GLSL image format.
 ``Units`` is the same idea for binding points: one table, ``#define``s for the shaders.
@@ -46,6 +47,7 @@ for _n in (2, 3, 4):
     _GLSL_TYPES[f"ivec{_n}"] = ("int", _n)
 _NUMPY = {"float": np.float32, "uint": np.uint32, "int": np.int32}
 _VEC = {"float": "vec", "uint": "uvec", "int": "ivec"}
+_MODERNGL = {"float": "f", "uint": "u", "int": "i"}     # moderngl buffer format letters
 # bit-preserving conversions GLSL[(from, to)]
 _BITS = {("float", "uint"): "floatBitsToUint", ("float", "int"): "floatBitsToInt",
          ("uint", "float"): "uintBitsToFloat", ("int", "float"): "intBitsToFloat",
@@ -293,8 +295,26 @@ class Record:
         tightly packed (slot_words 1)."""
         if self.slot_words != 1 or sum(f.comps for f in self.fields) != self.words:
             raise ValueError(f"{self.name}: a vertex record is tightly packed (slot_words=1)")
-        code = {"float": "f", "uint": "u", "int": "i"}
-        return " ".join(f"{f.comps}{code[f.base]}" for f in self.fields)
+        return " ".join(f"{f.comps}{_MODERNGL[f.base]}" for f in self.fields)
+
+    def field_array(self, name: str, values) -> np.ndarray:
+        """``values`` as the contiguous (n, comps) array a buffer of field ``name`` alone holds
+        (a vertex record kept one buffer per field, e.g. so one field can be rewritten alone)."""
+        f = self.field(name)
+        a = np.ascontiguousarray(values, dtype=_NUMPY[f.base])
+        ok = a.shape[1] == f.comps if a.ndim == 2 else (a.ndim == 1 and f.comps == 1)
+        if not ok:
+            raise ValueError(f"{self.name}.{name}: expected (n, {f.comps}) values, got {a.shape}")
+        return a
+
+    def vertex_content(self, buffers: dict, prefix: str = "in_") -> list[tuple]:
+        """moderngl ``vertex_array`` content for a vertex record kept one buffer per field:
+        ``(buffer, "3f", "in_position")`` per field, in declaration (= location) order."""
+        if set(buffers) != {f.name for f in self.fields}:
+            raise ValueError(f"{self.name}: one buffer per field {[f.name for f in self.fields]}, "
+                             f"got {sorted(buffers)}")
+        return [(buffers[f.name], f"{f.comps}{_MODERNGL[f.base]}", f"{prefix}{f.name}")
+                for f in self.fields]
 
     def glsl_vertex_inputs(self, prefix: str = "in_") -> str:
         """``layout(location = k) in TYPE {prefix}{field};`` per field, in order."""

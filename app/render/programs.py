@@ -39,6 +39,10 @@ GENERATED_INCLUDES = {
     "gen/block_of.glsl": "app.pbgi.gpu_layout:block_of_glsl",
     "gen/frames.glsl": "app.pbgi.gpu_layout:frames_glsl",
     "gen/gather_output.glsl": "app.pbgi.gpu_layout:gather_output_glsl",
+    "gen/viewer_texels.glsl": "app.render.gpu_layout:texels_glsl",
+    "gen/splat.glsl": "app.render.gpu_layout:splat_glsl",
+    "gen/viewer_gbuffer.glsl": "app.render.gpu_layout:gbuffer_glsl",
+    "gen/viewer_composite.glsl": "app.render.gpu_layout:composite_glsl",
 }
 
 

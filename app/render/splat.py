@@ -1,4 +1,7 @@
-"""Point-splat rendering of a cloud (the room background, capture previews, the viewer)."""
+"""Point-splat rendering of a cloud (the room background, capture previews, the viewer).
+
+Vertices (SPLAT_VERTEX, one buffer per field) and the target's texels (ROOM_TEXEL) are declared
+in app/render/gpu_layout.py, which generates splat.glsl's side of them."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ from scipy.spatial import cKDTree
 from app.camera import Camera
 from app.cloud import PointCloud
 from app.render.context import get_context
+from app.render.gpu_layout import ROOM_TEXEL, SPLAT_VERTEX
 from app.render.programs import load_program
 
 
@@ -51,16 +55,16 @@ class SplatRenderer:
         self.origin = cloud.positions.mean(axis=0) if len(cloud) else np.zeros(3)
         self.bounds = cloud.bounds() if len(cloud) else (np.zeros(3), np.ones(3))
         self.radius = splat_radius(cloud.positions) if radius is None else float(radius)
-        rel = (cloud.positions - self.origin).astype("f4")
+        rel = SPLAT_VERTEX.field_array("position", cloud.positions - self.origin)
         self.vbo_pos = self.ctx.buffer(rel.tobytes())
-        self.vbo_col = self.ctx.buffer(np.ascontiguousarray(cloud.colors, dtype="f4").tobytes())
-        self.vao = self.ctx.vertex_array(self.prog, [(self.vbo_pos, "3f", "in_position"),
-                                                     (self.vbo_col, "3f", "in_color")])
+        self.vbo_col = self.ctx.buffer(SPLAT_VERTEX.field_array("color", cloud.colors).tobytes())
+        self.vao = self.ctx.vertex_array(self.prog, SPLAT_VERTEX.vertex_content(
+            {"position": self.vbo_pos, "color": self.vbo_col}))
         self.count = len(cloud)
 
     def set_colors(self, colors: np.ndarray) -> None:
         """Swap LDR/HDR/difference colours without re-uploading positions."""
-        self.vbo_col.write(np.ascontiguousarray(colors, dtype="f4").tobytes())
+        self.vbo_col.write(SPLAT_VERTEX.field_array("color", colors).tobytes())
 
     def draw(self, camera: Camera, scale: float = 1.0) -> None:
         """Draw into the currently bound framebuffer (depth test on)."""
@@ -75,16 +79,19 @@ class SplatRenderer:
         self.vao.render(moderngl.POINTS, vertices=self.count)
 
     def render(self, camera: Camera, scale: float = 1.0) -> np.ndarray:
-        """(H, W, 4) float32 image, row 0 at the top; alpha = 1 where a splat covers the pixel."""
+        """(H, W, 4) float32 image of ROOM_TEXEL texels (radiance x ``scale``, coverage = 1
+        where a splat covers the pixel), row 0 at the top."""
         w, h = camera.width, camera.height
-        color = self.ctx.texture((w, h), 4, dtype="f4")
+        color = self.ctx.texture((w, h), ROOM_TEXEL.texel_components, dtype=ROOM_TEXEL.texture_dtype)
         depth = self.ctx.depth_texture((w, h))
         fbo = self.ctx.framebuffer([color], depth)
         try:
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             self.draw(camera, scale)
-            img = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="f4").reshape(h, w, 4)
+            texels = ROOM_TEXEL.view(fbo.read(components=ROOM_TEXEL.texel_components,
+                                              dtype=ROOM_TEXEL.texture_dtype))
+            img = ROOM_TEXEL.flat(texels).reshape(h, w, ROOM_TEXEL.words)
         finally:
             fbo.release(); color.release(); depth.release()
             from app.render.context import bind_anchor

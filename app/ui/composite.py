@@ -2,12 +2,20 @@
 
 Slow and exact; tests compare it with the GPU pass, and it documents the maths in one readable
 place (see the shader header for the rules). All images are in GL orientation here: row 0 at the
-bottom, as the textures hold them.
+bottom, as the textures hold them. The images are (..., words) arrays of the texel records of
+app/render/gpu_layout.py (ViewportRenderer.read_inputs); their columns are taken from there.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from app.render.gpu_layout import COMPOSITE_TEXEL, GI_TEXEL, GUIDE_TEXEL, ROOM_TEXEL
+
+_RGB = GI_TEXEL.columns("radiance")          # GI texel: radiance; status: 1 asset, < 0 pending
+_STATUS = GI_TEXEL.index("status")
+_NORMAL = GUIDE_TEXEL.columns("normal")      # G-buffer texel: normal, depth (0: no asset)
+_DEPTH = GUIDE_TEXEL.index("depth")
 
 NORMAL_SHARPNESS = 8.0       # exp(-8 (1 - cos)): a 30 degree crease keeps e^-1.07 = 34% weight
 DEPTH_TOLERANCE = 0.05       # relative: taps 5% of the distance apart get e^-1 weight (2%
@@ -30,7 +38,7 @@ def upsample(lo_img: np.ndarray, gbuf: np.ndarray, size: tuple[int, int]):
     qy = (py + 0.5) * h / H - 0.5
     ix, iy = np.floor(qx).astype(np.int64), np.floor(qy).astype(np.int64)
     fx, fy = qx - ix, qy - iy
-    n_p, z_p = gbuf[..., :3], gbuf[..., 3]
+    n_p, z_p = gbuf[..., _NORMAL], gbuf[..., _DEPTH]
     acc = np.zeros((H, W, 3))
     wsum = np.zeros((H, W))
     pending = np.zeros((H, W), bool)
@@ -41,18 +49,18 @@ def upsample(lo_img: np.ndarray, gbuf: np.ndarray, size: tuple[int, int]):
             ty = np.clip(iy + dy, 0, h - 1)
             s = lo_img[ty, tx].astype(np.float64)
             use = wb > 0
-            pending |= use & (s[..., 3] < 0)
-            use &= s[..., 3] >= 0.5
+            pending |= use & (s[..., _STATUS] < 0)
+            use &= s[..., _STATUS] >= 0.5
             gx = np.clip(((tx + 0.5) * W / w).astype(np.int64), 0, W - 1)
             gy = np.clip(((ty + 0.5) * H / h).astype(np.int64), 0, H - 1)
             gq = gbuf[gy, gx].astype(np.float64)
-            on = gq[..., 3] > 0
-            cos = np.clip(np.sum(n_p * gq[..., :3], axis=-1), -1, 1)
+            on = gq[..., _DEPTH] > 0
+            cos = np.clip(np.sum(n_p * gq[..., _NORMAL], axis=-1), -1, 1)
             wg = np.exp(-NORMAL_SHARPNESS * (1 - cos)) * np.exp(
-                -np.abs(gq[..., 3] - z_p) / (DEPTH_TOLERANCE * z_p + 1e-4))
+                -np.abs(gq[..., _DEPTH] - z_p) / (DEPTH_TOLERANCE * z_p + 1e-4))
             wt = wb * np.where(on, wg, OFF_GUIDE_WEIGHT)
             wt = np.maximum(wt, 1e-6 * wb) * use
-            acc += wt[..., None] * s[..., :3]
+            acc += wt[..., None] * s[..., _RGB]
             wsum += wt
     # Fallback: no usable tap and nothing pending -> mean of asset taps in the 4x4 window.
     fb = (wsum <= 0) & ~pending
@@ -64,8 +72,8 @@ def upsample(lo_img: np.ndarray, gbuf: np.ndarray, size: tuple[int, int]):
                 tx, ty = ix + dx, iy + dy
                 ok = (tx >= 0) & (ty >= 0) & (tx < w) & (ty < h)
                 s = lo_img[np.clip(ty, 0, h - 1), np.clip(tx, 0, w - 1)].astype(np.float64)
-                ok &= s[..., 3] >= 0.5
-                facc += ok[..., None] * s[..., :3]
+                ok &= s[..., _STATUS] >= 0.5
+                facc += ok[..., None] * s[..., _RGB]
                 fcnt += ok
         acc = np.where(fb[..., None], facc, acc)
         wsum = np.where(fb, fcnt, wsum)
@@ -75,15 +83,18 @@ def upsample(lo_img: np.ndarray, gbuf: np.ndarray, size: tuple[int, int]):
 def composite(room: np.ndarray, room_depth: np.ndarray, gbuf: np.ndarray, preview: np.ndarray,
               full: np.ndarray, near: float, far: float, background=(0.0, 0.0, 0.0),
               has_asset: bool = True) -> np.ndarray:
-    """(H, W, 4) linear composite: rgb, alpha = 1 where the asset is shown."""
+    """(H, W, 4) linear composite (COMPOSITE_TEXEL): radiance, asset = 1 where it is shown."""
     H, W = room.shape[:2]
-    room_rgb = np.where(room[..., 3:4] > 0, room[..., :3], np.asarray(background, np.float64))
+    covered = room[..., ROOM_TEXEL.columns("coverage")] > 0
+    room_rgb = np.where(covered, room[..., ROOM_TEXEL.columns("radiance")],
+                        np.asarray(background, np.float64))
     out = room_rgb.astype(np.float64).copy()
     asset = np.zeros((H, W), bool)
     if has_asset:
         g = gbuf.astype(np.float64)
-        room_z = np.where(room[..., 3] > 0, linear_depth(room_depth, near, far), 1e30)
-        vis = (g[..., 3] > 0) & (g[..., 3] <= room_z * ROOM_DEPTH_SLACK[0] + ROOM_DEPTH_SLACK[1])
+        room_z = np.where(covered[..., 0], linear_depth(room_depth, near, far), 1e30)
+        vis = (g[..., _DEPTH] > 0) & (g[..., _DEPTH] <= room_z * ROOM_DEPTH_SLACK[0]
+                                      + ROOM_DEPTH_SLACK[1])
         acc_f, w_f, pend_f = upsample(full, g, (H, W))
         acc_p, w_p, _ = upsample(preview, g, (H, W))
         use_p = pend_f | (w_f <= 0)
@@ -91,4 +102,7 @@ def composite(room: np.ndarray, room_depth: np.ndarray, gbuf: np.ndarray, previe
         wsum = np.where(use_p, w_p, w_f)
         asset = vis & (wsum > 0)
         out = np.where(asset[..., None], acc / np.maximum(wsum, 1e-300)[..., None], out)
-    return np.concatenate([out, asset[..., None]], axis=-1).astype(np.float32)
+    res = COMPOSITE_TEXEL.zeros(H * W)
+    res["radiance"] = out.reshape(-1, 3)
+    res["asset"] = asset.reshape(-1)
+    return COMPOSITE_TEXEL.flat(res).reshape(H, W, COMPOSITE_TEXEL.words)

@@ -19,9 +19,10 @@ time budget:
    least one cell per frame, so refinement always advances). Cells not yet rendered keep
    showing the upsampled preview. ``progress`` tells the UI how far it got.
 
-The render function is injected (``render(camera, tile) -> (h, w, 4) float32``): the viewer
-passes the real PBGI renderer; tests check the scheduling arithmetic with a fake clock (exact
-timings) and the tiling with the real renderer.
+The render function is injected (``render(camera, tile) -> (h, w, 4) float32`` GI_TEXEL texels:
+radiance, and 1 on the asset, 0 off it): the viewer passes the real PBGI renderer; tests check
+the scheduling arithmetic with a fake clock (exact timings) and the tiling with the real
+renderer.
 """
 
 from __future__ import annotations
@@ -33,11 +34,17 @@ from dataclasses import replace
 import numpy as np
 
 from app.camera import Camera
+from app.render.gpu_layout import GI_PENDING, GI_TEXEL
 
 CELL = 32                 # tile granularity before the cost per pixel is known
 MIN_CELL, MAX_CELL = 8, 64
 MIN_PREVIEW_SCALE = 1 / 16
 FIRST_PREVIEW_SCALE = 1 / 8  # before any cost per pixel is known
+
+
+def gi_image(height: int, width: int) -> np.ndarray:
+    """A zeroed (height, width, 4) float32 image of GI_TEXEL texels (status 0: background)."""
+    return GI_TEXEL.flat(GI_TEXEL.zeros(height * width)).reshape(height, width, GI_TEXEL.words)
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -81,17 +88,18 @@ def strip_tiles(rect, cell: int = CELL) -> list[list[tuple[int, int, int, int]]]
 
 
 class ProgressiveGI:
-    """Two GI images the compositor blends, both float32 (h, w, 4) linear, row 0 at the top:
+    """Two GI images the compositor blends, both (h, w, 4) float32 arrays of GI_TEXEL texels
+    (app/render/gpu_layout.py: radiance, status), row 0 at the top:
 
-    ``preview``: the whole preview camera (alpha 1 = asset, 0 = background);
-    ``full``: the layer camera, alpha -1 where no tile has been rendered yet.
+    ``preview``: the whole preview camera (status 1 = asset, 0 = background);
+    ``full``: the layer camera, status GI_PENDING where no tile has been rendered yet.
     ``preview_dirty`` / ``take_dirty()`` tell the viewer what to upload to the GPU.
     """
 
     def __init__(self, render, clock=time.perf_counter):
         self.render = render
         self.clock = clock
-        self.preview = np.zeros((1, 1, 4), dtype=np.float32)
+        self.preview = gi_image(1, 1)
         self.full: np.ndarray | None = None
         self.camera: Camera | None = None
         self.preview_camera: Camera | None = None
@@ -140,7 +148,7 @@ class ProgressiveGI:
                 self.full[y:y + h, x:x + w] = 0.0
             self.dirty_rects = [r for r in (old_rect, rect) if r is not None]
         else:
-            self.full = np.zeros((camera.height, camera.width, 4), dtype=np.float32)
+            self.full = gi_image(camera.height, camera.width)
             self.full_reset = True
             self.dirty_rects = []
         self._bands = [] if rect is None else strip_tiles(rect, self.cell_size(budget_ms))
@@ -148,12 +156,12 @@ class ProgressiveGI:
         self._cells_done = 0
         self._preview_pending = rect is not None
         if rect is None:  # asset off screen: nothing to draw
-            self.preview = np.zeros((1, 1, 4), dtype=np.float32)
+            self.preview = gi_image(1, 1)
             self.preview_camera = scaled_camera(camera, 1 / max(camera.width, camera.height))
             self.preview_dirty = True
         else:
             x, y, w, h = rect
-            self.full[y:y + h, x:x + w, 3] = -1.0
+            self.full[y:y + h, x:x + w, GI_TEXEL.index("status")] = GI_PENDING
 
     def step(self, budget_ms: float, allow_tiles: bool = True) -> bool:
         """Do up to ``budget_ms`` of work; True when an image changed."""
@@ -197,7 +205,7 @@ class ProgressiveGI:
         lo = self.render(small, (x0, y0, x1 - x0, y1 - y0))
         ms = (self.clock() - t0) * 1e3
         self.last_preview_ms = ms
-        self.preview = np.zeros((small.height, small.width, 4), dtype=np.float32)
+        self.preview = gi_image(small.height, small.width)
         self.preview[y0:y1, x0:x1] = lo
         self.preview_camera = small
         self.preview_dirty = True

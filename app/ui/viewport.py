@@ -12,7 +12,9 @@ screenshot is exactly what the window shows under its panels. Every frame:
    note in the project conventions).
 
 Textures are in GL orientation (row 0 at the bottom); numpy images (row 0 at the top) are flipped
-on upload and read-back here and nowhere else.
+on upload and read-back here and nowhere else. Texture and image units, vertex records, texel
+records and the composite's work-group size come from app/render/gpu_layout.py, which generates
+the shaders' side of them.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from app.camera import Camera
+from app.render.gpu_layout import (COMPOSITE_TEXEL, COMPOSITE_TILE, GI_TEXEL, GUIDE_TEXEL,
+                                   ROOM_TEXEL, VIEW_IMG, VIEW_TEX, VIEWER_VERTEX)
 from app.render.programs import load_compute, load_program
 from app.render.splat import SplatRenderer, gl_mat, near_far, relative_view
 
@@ -30,6 +34,12 @@ def _flip(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a[::-1])
 
 
+def _texels(tex, rec) -> np.ndarray:
+    """A texture of ``rec`` texels as (h, w, words) of its storage type, GL orientation."""
+    tw, th = tex.size
+    return rec.flat(rec.view(tex.read())).reshape(th, tw, rec.words)
+
+
 class ViewportRenderer:
     def __init__(self, ctx):
         import moderngl
@@ -38,7 +48,9 @@ class ViewportRenderer:
         from app.ui import composite as twin
         weights = {"NORMAL_SHARPNESS": repr(float(twin.NORMAL_SHARPNESS)),
                    "DEPTH_TOLERANCE": repr(float(twin.DEPTH_TOLERANCE)),
-                   "OFF_GUIDE_WEIGHT": repr(float(twin.OFF_GUIDE_WEIGHT))}
+                   "OFF_GUIDE_WEIGHT": repr(float(twin.OFF_GUIDE_WEIGHT)),
+                   "ROOM_DEPTH_SCALE": repr(float(twin.ROOM_DEPTH_SLACK[0])),
+                   "ROOM_DEPTH_BIAS": repr(float(twin.ROOM_DEPTH_SLACK[1]))}
         self.room_cs = load_compute(ctx, "viewer_composite.glsl", weights)
         self.asset_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, ASSET_PASS=1))
         self.label_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, LABEL_PASS=1))
@@ -50,16 +62,23 @@ class ViewportRenderer:
         self._asset_buffers = []
         self.asset_origin = np.zeros(3)
         self.asset_bounds = None
-        self.preview_tex = ctx.texture((1, 1), 4, np.zeros(4, "f4").tobytes(), dtype="f4")
-        self.full_tex = ctx.texture((1, 1), 4, np.zeros(4, "f4").tobytes(), dtype="f4")
+        self.preview_tex = self._gi_texture((1, 1), GI_TEXEL.zeros(1).tobytes())
+        self.full_tex = self._gi_texture((1, 1), GI_TEXEL.zeros(1).tobytes())
         self.label_tex = ctx.texture((1, 1), 4, bytes(4))
         self.label_size = (0, 0)
-        for t in (self.preview_tex, self.full_tex):
-            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._targets = []
         self.scene_bounds = (np.zeros(3), np.ones(3))
 
     # -- resources -------------------------------------------------------------------------------
+    def _texture(self, size, rec, data=None):
+        """A texture of ``rec`` texels, read texel by texel (nearest)."""
+        tex = self.ctx.texture(size, rec.texel_components, data, dtype=rec.texture_dtype)
+        tex.filter = (self.moderngl.NEAREST, self.moderngl.NEAREST)
+        return tex
+
+    def _gi_texture(self, size, data=None):
+        return self._texture(size, GI_TEXEL, data)
+
     def resize(self, width: int, height: int) -> None:
         if (width, height) == self.size:
             return
@@ -68,17 +87,17 @@ class ViewportRenderer:
         ctx, mgl = self.ctx, self.moderngl
         w, h = max(int(width), 1), max(int(height), 1)
         self.size = (w, h)
-        self.room_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.room_tex = self._texture((w, h), ROOM_TEXEL)
         self.room_depth = ctx.depth_texture((w, h))
         self.room_depth.compare_func = ""
         self.room_fbo = ctx.framebuffer([self.room_tex], self.room_depth)
-        self.gbuf_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.gbuf_tex = self._texture((w, h), GUIDE_TEXEL)
         self.gbuf_depth = ctx.depth_texture((w, h))
         self.gbuf_fbo = ctx.framebuffer([self.gbuf_tex], self.gbuf_depth)
-        self.linear_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.linear_tex = self._texture((w, h), COMPOSITE_TEXEL)
         self.display_tex = ctx.texture((w, h), 4)
         self.display_fbo = ctx.framebuffer([self.display_tex])
-        for t in (self.room_tex, self.room_depth, self.gbuf_tex, self.linear_tex, self.display_tex):
+        for t in (self.room_depth, self.display_tex):
             t.filter = (mgl.NEAREST, mgl.NEAREST)
         self._targets = [self.room_fbo, self.room_tex, self.room_depth, self.gbuf_fbo,
                          self.gbuf_tex, self.gbuf_depth, self.display_fbo, self.linear_tex,
@@ -103,12 +122,12 @@ class ViewportRenderer:
         lo, hi = mesh.bounds()
         self.asset_bounds = (np.asarray(lo, np.float64), np.asarray(hi, np.float64))
         self.asset_origin = (self.asset_bounds[0] + self.asset_bounds[1]) / 2
-        pos = (mesh.positions.astype(np.float64) - self.asset_origin).astype("f4")
-        vbo = self.ctx.buffer(pos.tobytes())
-        nbo = self.ctx.buffer(np.ascontiguousarray(mesh.normals, "f4").tobytes())
+        pos = mesh.positions.astype(np.float64) - self.asset_origin
+        vbo = self.ctx.buffer(VIEWER_VERTEX.field_array("position", pos).tobytes())
+        nbo = self.ctx.buffer(VIEWER_VERTEX.field_array("normal", mesh.normals).tobytes())
         ibo = self.ctx.buffer(np.ascontiguousarray(mesh.indices, "u4").tobytes())
         self.asset_vao = self.ctx.vertex_array(
-            self.gbuf_prog, [(vbo, "3f", "in_position"), (nbo, "3f", "in_normal")],
+            self.gbuf_prog, VIEWER_VERTEX.vertex_content({"position": vbo, "normal": nbo}),
             index_buffer=ibo, index_element_size=4)
         self._asset_buffers = [self.asset_vao, vbo, nbo, ibo]
 
@@ -129,8 +148,7 @@ class ViewportRenderer:
         h, w = img.shape[:2]
         if self.preview_tex.size != (w, h):
             self.preview_tex.release()
-            self.preview_tex = self.ctx.texture((w, h), 4, dtype="f4")
-            self.preview_tex.filter = (self.moderngl.NEAREST, self.moderngl.NEAREST)
+            self.preview_tex = self._gi_texture((w, h))
         self.preview_tex.write(_flip(img.astype("f4")).tobytes())
 
     def upload_full(self, img: np.ndarray, rects=None) -> None:
@@ -138,8 +156,7 @@ class ViewportRenderer:
         h, w = img.shape[:2]
         if self.full_tex.size != (w, h):
             self.full_tex.release()
-            self.full_tex = self.ctx.texture((w, h), 4, dtype="f4")
-            self.full_tex.filter = (self.moderngl.NEAREST, self.moderngl.NEAREST)
+            self.full_tex = self._gi_texture((w, h))
             rects = None
         if rects is None:
             self.full_tex.write(_flip(img.astype("f4")).tobytes())
@@ -179,14 +196,14 @@ class ViewportRenderer:
             near, far = near_far(camera, *self.splat.bounds)
         else:
             near, far = 0.01, 100.0
-        self.room_tex.use(0)
-        self.room_depth.use(1)
-        self.gbuf_tex.use(2)
-        self.preview_tex.use(3)
-        self.full_tex.use(4)
-        self.label_tex.use(5)
-        self.linear_tex.bind_to_image(0, read=False, write=True)
-        self.display_tex.bind_to_image(1, read=True, write=True)
+        self.room_tex.use(location=VIEW_TEX.ROOM)
+        self.room_depth.use(location=VIEW_TEX.ROOM_DEPTH)
+        self.gbuf_tex.use(location=VIEW_TEX.GBUF)
+        self.preview_tex.use(location=VIEW_TEX.PREVIEW)
+        self.full_tex.use(location=VIEW_TEX.FULL)
+        self.label_tex.use(location=VIEW_TEX.LABEL)
+        self.linear_tex.bind_to_image(VIEW_IMG.LINEAR, read=False, write=True)
+        self.display_tex.bind_to_image(VIEW_IMG.DISPLAY, read=True, write=True)
         gl_label = None
         if label_rect and self.label_size[0]:
             lx, ly, lw, lh = label_rect
@@ -197,8 +214,7 @@ class ViewportRenderer:
             "u_exposure": float(exposure), "u_tonemap": 0 if tonemap == "pbr-neutral" else 1,
             "u_raw_room": int(raw_room), "u_unavailable": int(unavailable),
             "u_background": BACKGROUND, "u_label_rect": gl_label or (0, 0, 0, 0),
-            "u_room": 0, "u_room_depth": 1, "u_gbuf": 2, "u_preview": 3, "u_full": 4, "u_label": 5,
-        }
+        }   # the samplers' units are their layout(binding = VIEW_TEX_*)
 
         def run(cs, rect_gl):
             x, y, rw, rh = rect_gl
@@ -211,7 +227,7 @@ class ViewportRenderer:
                     cs[key].value = val
             cs["u_offset"].value = (x0, y0)
             cs["u_extent"].value = (x1 - x0, y1 - y0)
-            cs.run((x1 - x0 + 7) // 8, (y1 - y0 + 7) // 8)
+            cs.run(-(-(x1 - x0) // COMPOSITE_TILE), -(-(y1 - y0) // COMPOSITE_TILE))
             self.ctx.memory_barrier()
 
         if room:
@@ -235,19 +251,17 @@ class ViewportRenderer:
 
     def read_linear(self) -> np.ndarray:
         """(H, W, 4) float32 linear composite, alpha = asset; row 0 at the top."""
-        w, h = self.size
-        return _flip(np.frombuffer(self.linear_tex.read(), "f4").reshape(h, w, 4))
+        return _flip(_texels(self.linear_tex, COMPOSITE_TEXEL))
 
     def read_inputs(self) -> dict:
-        """Every input of the composite as numpy (GL orientation), for the numpy twin."""
+        """Every input of the composite as numpy (GL orientation), for the numpy twin: the
+        texel images as (h, w, words) arrays, columns as their records lay them out."""
         w, h = self.size
-
-        def f4(tex, comps=4):
-            tw, th = tex.size
-            return np.frombuffer(tex.read(), "f4").reshape(th, tw, comps).copy()
         depth = np.frombuffer(self.room_depth.read(), "f4").reshape(h, w).copy()
-        return {"room": f4(self.room_tex), "room_depth": depth, "gbuf": f4(self.gbuf_tex),
-                "preview": f4(self.preview_tex), "full": f4(self.full_tex)}
+        return {"room": _texels(self.room_tex, ROOM_TEXEL).copy(), "room_depth": depth,
+                "gbuf": _texels(self.gbuf_tex, GUIDE_TEXEL).copy(),
+                "preview": _texels(self.preview_tex, GI_TEXEL).copy(),
+                "full": _texels(self.full_tex, GI_TEXEL).copy()}
 
     def release(self) -> None:
         for obj in self._targets + self._asset_buffers + [self.preview_tex, self.full_tex,

@@ -5,7 +5,7 @@ Everything else is generated from it:
 
 - the viewer's widgets (app/ui/widgets.py) and its plain settings model and session JSON
   (app/settings.py);
-- the parameter records the engines take, ``RenderParams`` (app/pbgi/renderer.py) and
+- the parameter records the engines take, ``RenderParams`` (app/pbgi/modebase.py) and
   ``ExpandParams`` (app/hdr/pipeline.py), through ``param_record``: a record's fields, defaults
   and validation are its group's rows;
 - the command-line options of ``render``, ``expand``, ``evaluate`` and ``bench``
@@ -78,11 +78,6 @@ class Param:
     @property
     def slider_range(self) -> tuple[float, float]:
         return self.soft if self.soft is not None else (self.lo, self.hi)
-
-    @property
-    def gi(self) -> bool:
-        """Does a change alter the relit image (re-gather)?"""
-        return self.redo == "gi"
 
     def range_text(self) -> str:
         if self.kind == "choice":
@@ -263,16 +258,11 @@ PARAMS: tuple[Param, ...] = (
 )
 
 BY_KEY: dict[str, Param] = {p.key: p for p in PARAMS}
-GROUPS = ("view", "pbgi", "hdr")
 assert len(BY_KEY) == len(PARAMS), "a key is declared twice"
 
 
 def group(name: str, ui_only: bool = False) -> tuple[Param, ...]:
     return tuple(p for p in PARAMS if p.group == name and (p.ui or not ui_only))
-
-
-def defaults(keys=None) -> dict:
-    return {k: BY_KEY[k].default for k in (keys or BY_KEY)}
 
 
 # ------------------------------------------------------------------------------------------------

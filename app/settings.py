@@ -38,7 +38,8 @@ DOCUMENT_KEYS = ("files.cloud", "files.hdr_cloud", "files.asset", "files.photo",
 
 
 class Settings:
-    """Current values of the parameter table (``app.params.PARAMS``) plus the set of keys changed since the engine last looked."""
+    """Current values of the parameter table (``app.params.PARAMS``) plus the set of keys
+    changed since the engine last looked."""
 
     def __init__(self, values: dict | None = None, source=None):
         self._values = {p.key: p.default for p in PARAMS}

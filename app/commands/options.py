@@ -129,8 +129,4 @@ def param_values(args, command: str) -> dict:
     return out
 
 
-def flag_of(command: str, key: str) -> str:
-    return next(f for f, k in COMMAND_FLAGS[command].items() if k == key)
-
-
-__all__ = ["COMMAND_FLAGS", "DEPRECATED", "add_param_options", "param_values", "flag_of"]
+__all__ = ["COMMAND_FLAGS", "DEPRECATED", "add_param_options", "param_values"]

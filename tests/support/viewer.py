@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import pytest
 
 SMALL_MICROBUFFER = 8      # the settings' minimum: the cheapest real gather
 

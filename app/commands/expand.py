@@ -23,7 +23,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.commands.options import COMMAND_FLAGS, add_param_options, param_values
+from app.commands.options import COMMAND_FLAGS, add_param_options, given_values, param_values
 from app.errors import ScanlightError, UsageError
 from app.params import BY_KEY
 
@@ -47,7 +47,7 @@ def add_arguments(parser) -> None:
 
 def expand_params(args):
     """The ExpandParams of the command line: the table's defaults, then ``--params``, then the
-    flags given with a non-default value; a bad value is one line naming the flag (exit 2)."""
+    flags given (they win); a bad value is one line naming the flag (exit 2)."""
     from app.hdr.pipeline import ExpandParams
 
     values = param_values(args, "expand")
@@ -59,9 +59,11 @@ def expand_params(args):
             raise UsageError(None, f"--params is not valid JSON ({exc})") from None
         if not isinstance(extra, dict):
             raise UsageError(None, "--params must be a JSON object")
-    flags = {key: v for key, v in values.items() if v != BY_KEY[key].default}
+    # merged by field name: --params may name a field ("neighbours") or its key ("hdr.neighbours")
+    by_name = lambda d: {BY_KEY[k].name if k in BY_KEY else k: v for k, v in d.items()}
     try:
-        return ExpandParams.from_dict({**values, **extra, **flags})
+        return ExpandParams.from_dict({**by_name(values), **by_name(extra),
+                                       **by_name(given_values(args, "expand"))})
     except ScanlightError as err:   # a cross-field check (each flag alone was fine)
         if extra:
             raise UsageError(None, f"--params: {err.reason}") from None

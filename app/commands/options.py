@@ -17,33 +17,38 @@ import argparse
 import logging
 
 from app.errors import ScanlightError, UsageError
-from app.params import BY_KEY, EXPAND_KEYS, Param
+from app.params import BY_KEY, EXPAND_KEYS, RENDER_KEYS, Param
 
 log = logging.getLogger(__name__)
 
 
 def _flags(keys, renamed: dict | None = None) -> dict[str, str]:
-    """flag -> key, the default flag unless ``renamed`` maps the key to another."""
-    renamed = renamed or {}
+    """flag -> key: ``RENAMED``'s flag (or this command's ``renamed``), else --name."""
+    renamed = {**RENAMED, **(renamed or {})}
     return {renamed.get(k, "--" + BY_KEY[k].name.replace("_", "-")): k for k in keys}
 
 
-_RENDER = ("pbgi.mode", "pbgi.microbuffer", "pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
-           "pbgi.parallax_tolerance", "pbgi.envmap_face")
-_HDR_SHORT = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th",
-              "hdr.neighbours": "--k", "hdr.iterations": "--exposure-iterations"}
+# flags that are not "--" + the parameter's name: the paper's short names, and the budget's
+RENAMED = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th", "hdr.neighbours": "--k",
+           "hdr.iterations": "--exposure-iterations", "pbgi.memory_budget_mb": "--budget-mb"}
 
 # command -> {flag: key}
 COMMAND_FLAGS: dict[str, dict[str, str]] = {
-    "render": _flags(_RENDER + ("view.exposure",),
-                     {"pbgi.memory_budget_mb": "--budget-mb"}),
-    "expand": _flags(EXPAND_KEYS, _HDR_SHORT),
-    "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha"), _HDR_SHORT),
+    "render": _flags(RENDER_KEYS + ("view.exposure",)),
+    "expand": _flags(EXPAND_KEYS),
+    "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha")),
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
-                            "pbgi.parallax_tolerance"), {"pbgi.memory_budget_mb": "--budget-mb"}),
-    "bench classic": _flags(("pbgi.memory_budget_mb",), {"pbgi.memory_budget_mb": "--budget-mb"}),
+                            "pbgi.parallax_tolerance")),
+    "bench classic": _flags(("pbgi.memory_budget_mb",)),
     "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed"),
                            {"hdr.poisson_solver": "--solver"}),
+}
+# (command, key) -> help where the table's text does not fit the command's use of the value
+HELP = {
+    ("evaluate", "hdr.alpha"): "the scan's alpha: scale of the evaluated cloud relative to the "
+                               "ground truth; not set: measured on the well-exposed points",
+    ("evaluate", "hdr.threshold_ldr"): "t_l: points whose LDR luminance exceeds this count as "
+                                       "overexposed",
 }
 # command -> {old flag: new flag}
 DEPRECATED: dict[str, dict[str, str]] = {
@@ -56,11 +61,11 @@ def _dest(key: str) -> str:
     return "param__" + key.replace(".", "__")
 
 
-def _help(p: Param) -> str:
+def _help(p: Param, text: str | None = None) -> str:
     default = "not set" if p.default is None else p.default
     rng = p.range_text()
     unit = f" {p.unit}" if p.unit else ""
-    text = f"{p.help} (default {default}{unit}" + (f"; {rng}" if rng and p.kind != "choice"
+    text = f"{text or p.help} (default {default}{unit}" + (f"; {rng}" if rng and p.kind != "choice"
                                                    else "") + ")"
     return text.replace("%", "%%")     # argparse %-formats help (hdr.l_max_percentile is in %)
 
@@ -98,8 +103,10 @@ def add_param_options(parser, command: str) -> None:
     """Add the options of ``command`` (a key of COMMAND_FLAGS) to an argparse parser."""
     for flag, key in COMMAND_FLAGS[command].items():
         p = BY_KEY[key]
-        kw = {"dest": _dest(key), "type": _typed(p), "default": p.default,
-              "help": _help(p)}
+        # no default on the namespace: a flag the user gave is one present there
+        # (``given_values``); ``param_values`` fills in the table's default
+        kw = {"dest": _dest(key), "type": _typed(p), "default": argparse.SUPPRESS,
+              "help": _help(p, HELP.get((command, key)))}
         if p.kind == "choice":
             kw["choices"] = p.choices
         elif p.kind == "bool":
@@ -129,4 +136,11 @@ def param_values(args, command: str) -> dict:
     return out
 
 
-__all__ = ["COMMAND_FLAGS", "DEPRECATED", "add_param_options", "param_values"]
+def given_values(args, command: str) -> dict:
+    """key -> value of the parameters of ``command`` given on the command line (checked), even
+    where the value equals the default."""
+    values = param_values(args, command)
+    return {k: v for k, v in values.items() if hasattr(args, _dest(k))}
+
+
+__all__ = ["COMMAND_FLAGS", "DEPRECATED", "add_param_options", "param_values", "given_values"]

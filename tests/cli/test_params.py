@@ -114,3 +114,15 @@ def test_readme_holds_the_generated_table():
     readme = (ROOT / "README.md").read_text()
     assert markdown_table() in readme, "regenerate the README table: " \
         "python -c 'from app.params import markdown_table; print(markdown_table())'"
+
+
+def test_expand_flags_given_win_over_params_json():
+    """--params fills fields by name or by key; a flag given on the command line wins, even at
+    its default value; what neither sets keeps the table's default."""
+    from app.commands.expand import expand_params
+    parse = lambda *extra: expand_params(build_parser().parse_args(MINIMAL["expand"] + list(extra)))
+    assert parse("--k", "8", "--params", '{"neighbours": 4}').neighbours == 8
+    assert parse("--k", "8", "--params", '{"hdr.neighbours": 4}').neighbours == 8
+    assert parse("--face-size", "512", "--params", '{"face_size": 64}').face_size == 512
+    assert parse("--params", '{"neighbours": 4}').neighbours == 4
+    assert parse().neighbours == BY_KEY["hdr.neighbours"].default

@@ -19,7 +19,10 @@ Kinds: ``float``, ``int``, ``bool``, ``choice`` (one of ``choices``). ``optional
 also be None ("not set": the engine decides, e.g. the exposure search finds alpha). A value out
 of ``lo .. hi`` is an error for a record or a command line (``Param.check``); the viewer clamps
 instead (``Param.clamp``: a slider or an old session never fails). ``ui`` rows get a widget;
-``soft`` narrows a slider's travel below the full range (Blender's soft limits).
+``soft`` narrows a slider's travel below the full range (Blender's soft limits). ``when``
+names the choice values under which a parameter matters (Hybrid's tolerances, PatchMatch's t_h):
+the viewer greys the widget out otherwise instead of hiding it, so the panel never reflows
+under the cursor.
 
 ``redo`` says what a change invalidates, for the engine's change handlers: "gi" re-gathers the
 asset, "display" only re-tone-maps / recomposites, "room" redraws the point splats, "job" only
@@ -57,11 +60,16 @@ class Param:
     ui: bool = True
     optional: bool = False        # None allowed ("not set")
     soft: tuple[float, float] | None = None   # the slider's travel, inside lo .. hi
+    when: tuple[str, tuple[str, ...]] | None = None  # (choice key, its values where this matters)
 
     def __post_init__(self):
         assert self.kind in KINDS and self.redo in REDO, self.key
         assert self.kind != "choice" or self.default in self.choices, self.key
         assert self.optional or self.default is not None, self.key
+
+    def applies(self, values) -> bool:
+        """Whether this parameter matters under ``values`` (a mapping of keys to values)."""
+        return self.when is None or values[self.when[0]] in self.when[1]
 
     @property
     def group(self) -> str:
@@ -174,7 +182,7 @@ PARAMS: tuple[Param, ...] = (
        redo="display"),
     _f("view.fly_speed", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s", log=True),
     # -- PBGI: RenderParams, plus the viewer-only render_scale, preview_scale, frame_budget_ms -----
-    _c("pbgi.mode", "classic", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
+    _c("pbgi.mode", "hybrid", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
        "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "
        "near field per pixel (several times faster). Environment map: one cube map from the "
        "asset centre.", RENDER_MODES, redo="gi"),
@@ -186,18 +194,20 @@ PARAMS: tuple[Param, ...] = (
        "with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x", redo="gi"),
     _f("pbgi.omega_tr_factor", 32.0, "Exact Hybrid (parallax tolerance 0): a node is refined "
        "per pixel once its solid angle drops below this factor times the micro-pixel's.",
-       1.0, 256.0, "x", label="Omega_tr factor", log=True, redo="gi"),
+       1.0, 256.0, "x", label="Omega_tr factor", log=True, redo="gi",
+       when=("pbgi.mode", ("hybrid",))),
     _f("pbgi.parallax_tolerance", 1.0, "Hybrid: the far field is walked once per block of "
        "pixels where seen from any pixel of the block it moves by less than this "
        "(micro-pixels); 0 = the exact Hybrid (the same cut as Classic, slower).", 0.0, 4.0, "px",
-       label="parallax tolerance", redo="gi"),
+       label="parallax tolerance", redo="gi", when=("pbgi.mode", ("hybrid",))),
     _f("pbgi.memory_budget_mb", 1024.0, "GPU memory the micro-buffers and the mipmapped/hybrid "
        "pair lists may use before they fall back to smaller batches.", 0.01, 65536.0, "MB",
        label="memory budget", log=True, soft=(64.0, 8192.0), redo="gi"),
     _f("pbgi.frame_budget_ms", 80.0, "GI work per frame while refining: tiles are sized so one "
        "frame stays near this time.", 10.0, 1000.0, "ms", label="frame budget", log=True),
     _i("pbgi.envmap_face", 128, "Environment-map baseline: cube-map face size of the room seen "
-       "from the asset centre.", 8, 2048, "px", label="envmap face", redo="gi", ui=False),
+       "from the asset centre.", 8, 2048, "px", label="envmap face", redo="gi", ui=False,
+       when=("pbgi.mode", ("envmap",))),
     # -- HDR expansion (ExpandParams) -----------------------------------------------------------
     _c("hdr.method", "pmatch-rgb", "Expansion strategy: generalised PatchMatch transferring "
        "colour or luminance from the photo, or inverse tone mapping (Landis / Banterle; '-pc' = "
@@ -208,7 +218,7 @@ PARAMS: tuple[Param, ...] = (
        "expanded.", 0.01, 0.999, "", label="t_l (overexposed)", soft=(0.5, 0.999), redo="job"),
     _f("hdr.threshold_ssd", 1.0, "t_h: PatchMatch matches with a patch SSD above this are "
        "rejected.", 0.001, 1000.0, "", label="t_h (match SSD)", log=True, soft=(0.01, 10.0),
-       redo="job"),
+       redo="job", when=("hdr.method", ("pmatch-rgb", "pmatch-lum"))),
     _i("hdr.neighbours", 16, "k of the k-nearest-neighbour graph of the Poisson colour editing.",
        1, 256, "", label="Poisson k", soft=(4, 64), redo="job"),
     _i("hdr.bins", 128, "Histogram bins of the exposure search.", 2, 65536, "",
@@ -259,6 +269,7 @@ PARAMS: tuple[Param, ...] = (
 
 BY_KEY: dict[str, Param] = {p.key: p for p in PARAMS}
 assert len(BY_KEY) == len(PARAMS), "a key is declared twice"
+assert all(p.when is None or set(p.when[1]) <= set(BY_KEY[p.when[0]].choices) for p in PARAMS)
 
 
 def group(name: str, ui_only: bool = False) -> tuple[Param, ...]:

@@ -98,7 +98,7 @@ def draw_status(ui) -> None:
         dl.add_rect_filled((x0, y0), (x0 + bar_w * frac, y0 + 14), _col(0.3, 0.6, 1.0, 0.9), 3)
         label = (f"preview at 1/{1 / e.gi.effective_scale:.0f} resolution" if frac == 0 else
                  f"refining {100 * frac:.0f}%")
-        dl.add_text((x0 - 8 - imgui.calc_text_size(label).x, y0), _col(1, 1, 1), label)
+        backed_text(dl, (x0 - 12 - imgui.calc_text_size(label).x, y0), label, (1, 1, 1))
     task = ui.hdr_task
     if task is not None and task.running:
         _, frac, stage = task.snapshot()
@@ -109,8 +109,16 @@ def draw_status(ui) -> None:
                       (0.7, 0.9, 1.0)))
     y = h - 26 - 18 * len(lines)
     for text, c in lines:
-        dl.add_text((PANEL_X + 8, y), _col(*c), text)
+        backed_text(dl, (PANEL_X + 8, y), text, c)
         y += 18
+
+
+def backed_text(dl, pos, text: str, colour) -> None:
+    """Text on a dark rounded backing, readable over any part of the room."""
+    x, y = pos
+    size = imgui.calc_text_size(text)
+    dl.add_rect_filled((x - 4, y - 2), (x + size.x + 4, y + size.y + 2), _col(0, 0, 0, 0.7), 3)
+    dl.add_text((x, y), _col(*colour), text)
 
 
 def draw_messages(ui) -> None:

@@ -55,7 +55,7 @@ def ui(ctx, monkeypatch):
     w.engine, w.session, w.ctx = engine, engine.session, ctx
     w.imgui, w.dialog = _Renderer(), FileDialog()
     w.selected_capture, w.gizmo_op, w.fly = 0, "translate", False
-    w.hdr_task = None
+    w.hdr_task, w.hdr_status, w.demo_request, w.leftover = None, "", None, None
     w.textures = PanelTextures(ctx, w.imgui)
     w.hdr_report = {"alpha": 0.9, "counts": {"overexposed": 10, "expanded_by_projection": 8,
                                              "filled_by_poisson": 2, "unresolved": 0},
@@ -106,7 +106,7 @@ def test_run_expansion_keeps_the_photo_texture_until_the_frame_is_drawn(ui, monk
     closed, every time). The texture must outlive the frame, then be freed."""
     from app.ui import panels
     from app.ui.panels.hdr import PHOTO
-    monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {t for t, _ in panels.SECTIONS})
+    monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {"HDR expansion"})   # the thumbnail in view
     _draw(ui, 1)
     before = ui.textures.get(PHOTO)
     assert before is not None and before.glo in ui.imgui.drawn

@@ -46,5 +46,5 @@ def draw(ui) -> None:
             changed, v = True, p.default
         if changed:
             s.set_material(idx, {p.name: v})
-    if m.base_color_texture is not None or m.metallic_roughness_texture is not None:
-        imgui.text_disabled("textures multiply these factors")
+    textured = m.base_color_texture is not None or m.metallic_roughness_texture is not None
+    imgui.text_disabled("textures multiply these factors" if textured else "no textures")

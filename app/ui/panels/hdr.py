@@ -26,53 +26,74 @@ def _photo_thumbnail(ui):
     return ui.textures.set(PHOTO, tonemap_to_srgb8(small, ev))
 
 
-def draw(ui) -> None:
-    s, e = ui.session, ui.engine
+REPORT_LINES = 4   # the report area's fixed height, in lines: the panel never reflows
+
+
+def _photo(ui) -> None:
+    e = ui.engine
+    avail = imgui.get_content_region_avail().x
     if e.photo is None:
         imgui.text_disabled("no HDR photo: open one in the Scene panel")
-    else:
-        tex = ui.textures.get(PHOTO) or _photo_thumbnail(ui)
-        tw, th = tex.size
-        avail = imgui.get_content_region_avail().x
-        imgui.image(tex.glo, (avail, avail * th / tw))
-        alpha = (ui.hdr_report or {}).get("alpha")
-        imgui.text(f"exposure found: alpha = {alpha:.4g} ({np.log2(alpha):+.2f} EV)" if alpha
-                   else "exposure: found when the expansion runs")
-    method = s.settings["hdr.method"]
-    if method.startswith("pmatch"):
-        imgui.text("transfer:")
-        imgui.same_line()
-        if imgui.radio_button("colour", method == "pmatch-rgb"):
-            s.settings.set("hdr.method", "pmatch-rgb")
-        imgui.same_line()
-        if imgui.radio_button("luminance", method == "pmatch-lum"):
-            s.settings.set("hdr.method", "pmatch-lum")
-    widgets.panel_group(s.settings, "hdr")
+        imgui.text("exposure: -")
+        return
+    tex = ui.textures.get(PHOTO) or _photo_thumbnail(ui)
+    tw, th = tex.size
+    imgui.image(tex.glo, (avail, avail * th / tw))
+    alpha = (ui.hdr_report or {}).get("alpha")
+    imgui.text(f"exposure found: alpha = {alpha:.4g} ({np.log2(alpha):+.2f} EV)" if alpha
+               else "exposure: found when the expansion runs")
+
+
+def _run_controls(ui) -> None:
+    """Run and Cancel on one row, the job's progress bar under them: always both rows, greyed
+    out when they do not apply."""
+    s, e = ui.session, ui.engine
     task = ui.hdr_task
-    if task is not None and task.running:
-        state, frac, stage = task.snapshot()
+    running = task is not None and task.running
+    missing = ("open an HDR photo first" if e.photo is None else
+               "add a capture camera first" if not s.capture_cameras else "")
+    imgui.begin_disabled(running or bool(missing))
+    if imgui.button("Run expansion"):
+        e.guard("starting the HDR expansion", ui.start_expansion)
+        ui.textures.drop(PHOTO)   # re-made with the alpha found; freed after this frame
+    imgui.end_disabled()
+    tooltip(missing or "Runs in the background; the viewport stays interactive.")
+    imgui.same_line()
+    imgui.begin_disabled(not running)
+    if imgui.button("Cancel") and running:
+        task.cancel()
+    imgui.end_disabled()
+    if running:
+        _, frac, stage = task.snapshot()
         imgui.progress_bar(frac, (-1, 0), f"{stage} {100 * frac:.0f}%")
-        if imgui.button("Cancel"):
-            task.cancel()
     else:
-        imgui.begin_disabled(e.photo is None or not s.capture_cameras)
-        if imgui.button("Run expansion"):
-            e.guard("starting the HDR expansion", ui.start_expansion)
-            ui.textures.drop(PHOTO)   # re-made with the alpha found; freed after this frame
-        imgui.end_disabled()
-        tooltip("Runs in the background; the viewport stays interactive.")
-    if e.cloud is not None and e.cloud.hdr is not None:
-        imgui.separator_text("show")
-        cur = s.settings["view.cloud"]
-        for i, name in enumerate(BY_KEY["view.cloud"].choices):
-            if i:
-                imgui.same_line()
-            if imgui.radio_button(name.upper() if name != "difference" else "difference",
-                                  cur == name):
-                s.settings.set("view.cloud", name)
-        tooltip("difference: log2(Y_hdr / Y_ldr) per point, black = unchanged, white = 6 stops")
+        imgui.progress_bar(0.0, (-1, 0), ui.hdr_status or "idle")
+
+
+def _show_choice(ui) -> None:
+    s, e = ui.session, ui.engine
+    imgui.separator_text("show")
+    has_hdr = e.cloud is not None and e.cloud.hdr is not None
+    imgui.begin_disabled(not has_hdr)
+    cur = s.settings["view.cloud"]
+    for i, name in enumerate(BY_KEY["view.cloud"].choices):
+        if i:
+            imgui.same_line()
+        if imgui.radio_button(name.upper() if name != "difference" else "difference",
+                              cur == name):
+            s.settings.set("view.cloud", name)
+    imgui.end_disabled()
+    tooltip("difference: log2(Y_hdr / Y_ldr) per point, black = unchanged, white = 6 stops"
+            if has_hdr else "Available once the expansion has run.")
+
+
+def _report(ui) -> None:
     rep = ui.hdr_report
-    if rep:
+    h = imgui.get_text_line_height_with_spacing() * REPORT_LINES + 4
+    imgui.begin_child("report", (0, h))
+    if not rep:
+        imgui.text_disabled("no expansion yet")
+    else:
         c = rep.get("counts", {})
         imgui.text_wrapped(
             f"{c.get('overexposed', 0):,} overexposed points: "
@@ -81,3 +102,24 @@ def draw(ui) -> None:
             f"{c.get('unresolved', 0):,} unresolved")
         for wmsg in rep.get("warnings", [])[:3]:
             imgui.text_colored((1, 0.8, 0.3, 1), wmsg)
+            tooltip(wmsg)
+    imgui.end_child()
+
+
+def draw(ui) -> None:
+    s = ui.session
+    _photo(ui)
+    method = s.settings["hdr.method"]
+    imgui.begin_disabled(not method.startswith("pmatch"))
+    imgui.text("transfer:")
+    imgui.same_line()
+    if imgui.radio_button("colour", method == "pmatch-rgb"):
+        s.settings.set("hdr.method", "pmatch-rgb")
+    imgui.same_line()
+    if imgui.radio_button("luminance", method == "pmatch-lum"):
+        s.settings.set("hdr.method", "pmatch-lum")
+    imgui.end_disabled()
+    widgets.panel_group(s.settings, "hdr")
+    _run_controls(ui)
+    _show_choice(ui)
+    _report(ui)

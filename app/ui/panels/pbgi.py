@@ -16,14 +16,22 @@ def draw(ui) -> None:
         imgui.text_wrapped(e.relighter_error or "")
         return
     st = e.gi_stats
-    if st is not None:
-        imgui.separator_text("last gather")
-        imgui.text(f"mode {st.mode}   {st.ms:.1f} ms per pass")
-        imgui.text(f"nodes visited {int(st.nodes_visited):,}")
-        imgui.text(f"extra memory {st.mb:.1f} MB   M = {st.microbuffer}")
-        imgui.text(f"last tile {st.width} x {st.height} px"
-                   + ("" if st.completed else "   INCOMPLETE"))
-        if st.share is not None and st.share.share_blocks:
-            shared = st.share.share_receivers / max(st.receivers, 1)
-            imgui.text(f"far field shared by {st.share.share_blocks:,} blocks "
-                       f"({100 * shared:.0f}% of pixels)")
+    # The same five lines in every mode and before the first gather, so switching mode never
+    # moves the widgets below (the BRDF sliders) under the cursor.
+    imgui.separator_text("last gather")
+    if st is None:
+        lines = ["mode -", "nodes visited -", "extra memory -", "last tile -"]
+    else:
+        lines = [f"mode {st.mode}   {st.ms:.1f} ms per pass",
+                 f"nodes visited {int(st.nodes_visited):,}",
+                 f"extra memory {st.mb:.1f} MB   M = {st.microbuffer}",
+                 f"last tile {st.width} x {st.height} px"
+                 + ("" if st.completed else "   INCOMPLETE")]
+    for line in lines:
+        imgui.text(line)
+    if st is not None and st.share is not None and st.share.share_blocks:
+        shared = st.share.share_receivers / max(st.receivers, 1)
+        imgui.text(f"far field shared by {st.share.share_blocks:,} blocks "
+                   f"({100 * shared:.0f}% of pixels)")
+    else:
+        imgui.text_disabled("far field shared: Hybrid only")

@@ -37,6 +37,7 @@ def draw(ui) -> None:
         s.hdr_cloud = None
         s.set_file("cloud", "demo")
         s.set_file("photo", "demo")
+        ui.check_demo_light = True     # lit by its HDR light again (app/ui/demo_light.py)
     imgui.text(f"photo: {_name(s.photo)}")
     imgui.same_line()
     if imgui.small_button("open##photo"):
@@ -86,5 +87,8 @@ def draw(ui) -> None:
         ui.request_screenshot()
     tooltip("PNG of the viewport plus an EXR of the linear image, saved in the current folder "
             "once the refinement is complete.")
+    # always one line (a screenshot saved later must not push the panels below down)
+    imgui.text_disabled("last: " + (Path(ui.last_screenshot[0]).name if ui.last_screenshot
+                                    else "(none yet)"))
     if ui.last_screenshot:
-        imgui.text_wrapped("last: " + ui.last_screenshot[0])
+        tooltip(ui.last_screenshot[0])

@@ -45,3 +45,60 @@ def _from_arrays(z) -> room.DemoScene:
     ldr = PointCloud(z["positions"], z["normals"], z["ldr"], hdr=False, source="demo:ldr-scan")
     return room.DemoScene(gt, ldr, float(z["alpha"]), z["photo"], room.PHOTO_CAMERA,
                           room.CAPTURE_POSITIONS)
+
+
+def _expansion_key(request) -> str:
+    """What the demo expansion's result depends on: the demo scene, the capture positions, the
+    parameters, and the expansion code itself (a hash of app/hdr's sources, so any change to
+    the algorithm recomputes instead of showing a stale result)."""
+    import dataclasses
+    import hashlib
+    import json
+
+    h = hashlib.sha256()
+    h.update(json.dumps({"demo": DEMO_VERSION, "points": len(request.cloud),
+                         "cameras": [list(map(float, p)) for p in request.cameras],
+                         "params": dataclasses.asdict(request.params)},
+                        sort_keys=True, default=str).encode())
+    for src in sorted((Path(__file__).resolve().parents[1] / "hdr").glob("*.py")):
+        h.update(src.read_bytes())
+    return h.hexdigest()[:20]
+
+
+def _expansion_path(request) -> Path:
+    return cache_dir() / f"demo-hdr-{_expansion_key(request)}.npz"
+
+
+def load_demo_expansion(request):
+    """The cached app.hdr.result.Expansion of the demo ``request`` (an ExpandRequest of the
+    demo's LDR cloud and photo), or None when there is none (or it is unreadable)."""
+    import json
+
+    from app.hdr.result import Expansion
+    path = _expansion_path(request)
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            colors, labels, report = z["colors"], z["labels"], json.loads(str(z["report"]))
+    except Exception as exc:  # truncated or stale: recompute
+        log.warning("%s: unreadable demo expansion cache (%s); recomputing", path, exc)
+        return None
+    ldr = request.cloud
+    if colors.shape != ldr.colors.shape:
+        return None
+    hdr = PointCloud(ldr.positions, ldr.normals, colors, hdr=True, source="demo:hdr-expanded")
+    return Expansion(hdr, report, labels, [])
+
+
+def store_demo_expansion(request, result) -> None:
+    """Keep ``result`` for the next start (written beside, then renamed: never half a file)."""
+    import json
+
+    from app.io.files import jsonable
+    path = _expansion_path(request)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, colors=np.asarray(result.cloud.colors, np.float32),
+             labels=np.asarray(result.labels), report=json.dumps(jsonable(result.report)))
+    tmp.replace(path)

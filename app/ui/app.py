@@ -26,6 +26,7 @@ from app.camera import parse_size as camera_parse_size
 from app.errors import ScanlightError, UsageError
 from app.pbgi.renderer import Relighter
 from app.settings import Session, load_last_session, load_session
+from app.ui import demo_light
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +77,11 @@ class OffscreenViewer:
         self.ctx = get_context()
         self.session = session
         self.engine = ViewerEngine(self.ctx, session, size=size, relighter=relighter)
+        # the demo's HDR light before the first frame: screenshots never depend on timing
+        said = self.engine.guard("the demo's HDR light", demo_light.expand_now, session,
+                                 self.engine)
+        if said:
+            self.engine.error(said, "info")
         self.script = script
         self.script_args = list(script_args)
         self.frame_index = 0

@@ -29,9 +29,13 @@ import numpy as np
 from app.errors import ScanlightError
 from app.pbgi.renderer import Relighter
 from app.settings import Session, save_last_session
+from app.ui import restore_prompt
+from app.ui.autosave import Autosaver, leftovers, recover
 from app.ui.engine import ViewerEngine
+from app.ui.input import ImguiInput
 from app.ui.panels.hdr import PHOTO
 from app.ui.textures import PanelTextures
+from app.ui.widgets import apply_style
 
 log = logging.getLogger(__name__)
 
@@ -62,8 +66,9 @@ class ViewerWindow:
         set_window_context(self.ctx)
         imgui.create_context()
         imgui.get_io().set_ini_filename("")
-        imgui.style_colors_dark()
+        apply_style()
         self.imgui = ModernglWindowRenderer(self.wnd)
+        self.input = ImguiInput(self.wnd)
         self.relighter_factory = relighter
         self.engine = ViewerEngine(self.ctx, session, size=self.wnd.buffer_size,
                                    relighter=relighter)
@@ -79,12 +84,18 @@ class ViewerWindow:
         self.textures = PanelTextures(self.ctx, self.imgui)
         self.hdr_task = None
         self.hdr_report: dict | None = None
+        self.hdr_status = ""          # the last job's outcome, in the HDR panel's progress bar
+        self.demo_request = None      # the running job is the demo's own expansion
+        self.check_demo_light = True  # look once the engine has loaded (app/ui/demo_light.py)
         self.pending_screenshot: str | None = None
         self.last_screenshot: list[str] = []
         self._keys_down: set = set()
         self._dragging = False
         self._last_time = time.perf_counter()
         self.frame_intervals: list[float] = []   # ms between frames: what the user feels
+        self.autosaver = Autosaver()
+        found = leftovers()
+        self.leftover = found[0] if found else None   # offered by app/ui/restore_prompt.py
         self._install_events()
 
     # -- events ----------------------------------------------------------------------------------
@@ -92,12 +103,12 @@ class ViewerWindow:
         w = self.wnd
         w.resize_func = self._on_resize
         w.key_event_func = self._on_key
-        w.mouse_position_event_func = self.imgui.mouse_position_event
+        w.mouse_position_event_func = lambda x, y, dx, dy: self.input.move(x, y)
         w.mouse_drag_event_func = self._on_drag
         w.mouse_press_event_func = self._on_press
         w.mouse_release_event_func = self._on_release
         w.mouse_scroll_event_func = self._on_scroll
-        w.unicode_char_entered_func = self.imgui.unicode_char_entered
+        w.unicode_char_entered_func = self.input.char
         w.files_dropped_event_func = self._on_drop
         w.close_func = self._on_close
 
@@ -110,15 +121,15 @@ class ViewerWindow:
         self.imgui.resize(width, height)
 
     def _on_press(self, x, y, button) -> None:
-        self.imgui.mouse_press_event(x, y, button)
+        self.input.button(x, y, button, True)
         self._dragging = not self._ui_wants_mouse()
 
     def _on_release(self, x, y, button) -> None:
-        self.imgui.mouse_release_event(x, y, button)
+        self.input.button(x, y, button, False)
         self._dragging = False
 
     def _on_scroll(self, dx, dy) -> None:
-        self.imgui.mouse_scroll_event(dx, dy)
+        self.input.wheel(dx, dy)
         if self._ui_wants_mouse():
             return
         s = self.session.settings
@@ -128,7 +139,7 @@ class ViewerWindow:
             self.engine.nav.zoom(dy)
 
     def _on_drag(self, x, y, dx, dy) -> None:
-        self.imgui.mouse_drag_event(x, y, dx, dy)
+        self.input.move(x, y)
         if not self._dragging:
             return
         nav, st, mods = self.engine.nav, self.wnd.mouse_states, self.wnd.modifiers
@@ -152,7 +163,7 @@ class ViewerWindow:
 
     def _on_key(self, key, action, modifiers) -> None:
         from imgui_bundle import imgui
-        self.imgui.key_event(key, action, modifiers)
+        self.input.key(key, action, modifiers)
         keys = self.wnd.keys
         if action == keys.ACTION_RELEASE:
             self._keys_down.discard(key)
@@ -230,6 +241,8 @@ class ViewerWindow:
         old_engine.release()
         self.selected_capture = 0 if new.capture_cameras else -1
         self.textures.clear()
+        self.hdr_report, self.hdr_status = None, ""
+        self.check_demo_light = True
 
     def save_session(self, path) -> None:
         s = self.session
@@ -246,6 +259,20 @@ class ViewerWindow:
         self.dialog.open("Save session", (".json",),
                          lambda p: self.engine.guard("saving the session", self.save_session, p),
                          save=True, default_name="session.json")
+
+    def restore_leftover(self, left) -> None:
+        """Open the autosave ``left`` (moved to the recovered folder first, app/ui/autosave.py)."""
+        path = recover(left)
+        self.load_session(path)
+        self.engine.error(f"restored the autosaved session (kept as {path})", "info")
+
+    def _autosave(self) -> None:
+        e = self.engine
+        hdr = e.cloud.hdr if e.cloud is not None else None
+        before = self.autosaver.error
+        self.autosaver.tick(self.session, e.camera(), hdr)
+        if self.autosaver.error and self.autosaver.error != before:
+            e.error(self.autosaver.error, "warning")
 
     # -- screenshots -----------------------------------------------------------------------------
     def request_screenshot(self, path: str | None = None) -> None:
@@ -279,7 +306,32 @@ class ViewerWindow:
         self.hdr_task = ExpansionTask(req, synchronous=synchronous)
         self.hdr_report = None
 
+    def start_demo_light(self) -> None:
+        """The untouched demo gets its HDR light at once: the cached expansion, else the demo's
+        expansion as a background job (app/ui/demo_light.py)."""
+        from app.ui import demo_light
+        from app.ui.hdr_task import ExpansionTask
+        e, s = self.engine, self.session
+        if self.hdr_task is not None or not demo_light.wants_demo_light(s, e):
+            return
+        req = demo_light.demo_request(s, e)
+        hit = e.guard("reading the demo's saved HDR light", demo_light.cached_result, req)
+        if hit is not None:
+            self._apply_expansion(hit)
+            self.hdr_status = "demo: saved result"
+            e.error(demo_light.LOADED, "info")
+            return
+        self.hdr_task = ExpansionTask(req)
+        self.demo_request = req
+        e.error(demo_light.STARTED, "info")
+
+    def _apply_expansion(self, result) -> None:
+        self.hdr_report = result.report
+        self.engine.set_hdr_cloud(result.cloud, None)
+        self.textures.drop(PHOTO)
+
     def poll_expansion(self) -> None:
+        from app.ui import demo_light
         t = self.hdr_task
         if t is None:
             return
@@ -287,15 +339,23 @@ class ViewerWindow:
         if t.running:
             return
         self.hdr_task = None
+        demo = t.request is self.demo_request
+        self.demo_request = None
         if t.state == "done":
-            self.hdr_report = t.result.report
-            self.engine.set_hdr_cloud(t.result.cloud, None)
-            self.textures.drop(PHOTO)
-            self.engine.error(f"HDR expansion done in {t.seconds:.1f} s "
-                              f"(alpha = {t.result.report.get('alpha')})", "info")
+            self._apply_expansion(t.result)
+            self.hdr_status = f"done in {t.seconds:.1f} s"
+            if demo:
+                self.engine.guard("saving the demo's HDR light", demo_light.remember,
+                                  t.request, t.result)
+                self.engine.error(demo_light.READY, "info")
+            else:
+                self.engine.error(f"HDR expansion done in {t.seconds:.1f} s "
+                                  f"(alpha = {t.result.report.get('alpha')})", "info")
         elif t.state == "failed":
+            self.hdr_status = "failed (see the message)"
             self.engine.error(f"HDR expansion failed: {t.error}")
         else:
+            self.hdr_status = "cancelled"
             self.engine.error("HDR expansion cancelled", "info")
 
     # -- frame -----------------------------------------------------------------------------------
@@ -318,6 +378,9 @@ class ViewerWindow:
         self.poll_expansion()
         self.engine.guard("drawing the viewport", self.engine.frame,
                           interacting=moving or self.interacting())
+        if self.check_demo_light:
+            self.check_demo_light = False
+            self.engine.guard("starting the demo's HDR light", self.start_demo_light)
         self.wnd.use()
         self.engine.guard("showing the viewport", self.engine.view.blit, self.wnd.fbo)
         io = imgui.get_io()
@@ -327,6 +390,7 @@ class ViewerWindow:
         self.engine.guard("viewport overlay", overlay.draw, self)
         panels.draw(self)
         self.dialog.draw()
+        restore_prompt.draw(self)
         imgui.render()
         self.wnd.use()
         self.imgui.render(imgui.get_draw_data())
@@ -337,12 +401,15 @@ class ViewerWindow:
             if files:
                 self.last_screenshot = files
                 self.engine.error("screenshot saved: " + ", ".join(files), "info")
+        if self.leftover is None:     # never over a session the user may still restore
+            self._autosave()
         if self.script is not None:
             self.script(self, self.frame_index)
         self.frame_index += 1
 
     def run(self, frames: int = 0, screenshot: str | None = None) -> int:
         """The frame loop; ``frames`` > 0 stops after that many frames (tests, batch)."""
+        clean = False
         try:
             while not self.wnd.is_closing and not self.quit_requested:
                 self.render_frame()
@@ -352,8 +419,11 @@ class ViewerWindow:
             if screenshot:
                 files = self.engine.screenshot(screenshot)
                 print("screenshot: " + ", ".join(files))
+            clean = True
         finally:
             self.engine.guard("saving the last session", self._save_last)
+            if clean:   # a crash keeps the autosave for the next start's restore prompt
+                self.engine.guard("removing the autosave", self.autosaver.close)
             if self.hdr_task is not None and self.hdr_task.running:
                 self.hdr_task.cancel()
             self.wnd.destroy()

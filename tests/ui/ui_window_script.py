@@ -78,7 +78,7 @@ def on_frame(viewer, frame):
     elif st == 3 and frame - state["since"] >= 2:
         shoot(viewer, "d")
         w, h = e.size
-        viewer.imgui.mouse_position_event(w - 60, h // 2, 0, 0)   # hover the viewport first,
+        viewer.input.move(w - 60, h // 2)   # hover the viewport first,
         st = 4                                                    # as a real mouse does
     elif st == 4:
         # a left drag in the viewport orbits the view
@@ -91,9 +91,9 @@ def on_frame(viewer, frame):
         viewer._on_release(w - 60, h // 2, 1)
         viewer.wnd.mouse_states.left = False
         res["yaw_change"] = (e.nav.yaw - yaw + math.pi) % (2 * math.pi) - math.pi
-        viewer.imgui.mouse_position_event(100, 300, 0, 0)         # hover the panel
-        st = 5
-    elif st == 5:
+        viewer.input.move(100, 300)         # hover the panel
+        state["since"], st = frame, 5
+    elif st == 5 and frame - state["since"] >= 3:   # imgui's queue hands one event per frame
         # ... and the same drag over the panel does not
         yaw = e.nav.yaw
         viewer.wnd.mouse_states.left = True

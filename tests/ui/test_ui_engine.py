@@ -75,7 +75,7 @@ def test_changes_redo_only_what_depends_on_them(ctx, renders):
     e.finish_refinement()
     before = e.view.read_linear()
     asset = before[..., 3] > 0
-    assert asset.sum() > 200 and all(c.microbuffer == 8 and c.mode == "classic"
+    assert asset.sum() > 200 and all(c.microbuffer == 8 and c.mode == e.session.mode
                                      for c in renders)
     s = e.session.settings
     n = len(renders)

@@ -19,6 +19,8 @@ import numpy as np
 import pytest
 from tests.support.images import read_png
 
+from app.params import BY_KEY
+
 ROOT = Path(__file__).resolve().parents[2]
 TESTS = Path(__file__).resolve().parent
 W, H = 900, 520
@@ -90,7 +92,7 @@ def test_mode_change_reaches_the_renderer_and_the_picture(run):
     for shot in shots.values():       # the real PBGI renderer, with the session's micro-buffer
         assert shot["renderer_class"] == "app.pbgi.renderer.Relighter"
         assert shot["microbuffer"] == 8 and shot["completed"] is True
-    assert shots["b"]["mode"] == "classic"
+    assert shots["b"]["mode"] == BY_KEY["pbgi.mode"].default     # the table's default mode
     assert shots["c"]["mode"] == TARGET_MODE
     b, c = _img(tmp, "b"), _img(tmp, "c")
     asset = read_png(tmp / "b.asset.png")[..., 0] > 0

@@ -181,6 +181,8 @@ PARAMS: tuple[Param, ...] = (
     _b("view.show_gizmo", True, "Show the asset transform gizmo in the viewport.",
        redo="display"),
     _f("view.fly_speed", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s", log=True),
+    _b("view.free_orbit", False, "Let the orbit, pan and zoom take the eye under the scan's "
+       "floor (off: the eye stays 5 cm above it; app/ui/navigation.py)."),
     # -- PBGI: RenderParams, plus the viewer-only render_scale, preview_scale, frame_budget_ms -----
     _c("pbgi.mode", "hybrid", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
        "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "

@@ -39,7 +39,7 @@ from app.errors import ScanlightError
 from app.pbgi.renderer import RenderParams
 from app.pbgi.stats import RenderStats
 from app.settings import ChangeHandlers, Session
-from app.ui.navigation import ViewNavigator
+from app.ui.navigation import ViewNavigator, scan_floor
 from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect
 from app.ui.scene import Asset, Cloud, copy_materials, load_cloud_files
 from app.ui.viewport import ViewportRenderer
@@ -106,6 +106,7 @@ class ViewerEngine:
         self._asset_dirty = True
         self._gi_dirty = True
         self.nav = ViewNavigator(fov_y_deg=session.settings["view.fov_y"])
+        self.floor_y: float | None = None     # the scan's floor, for the navigator
         self.changes = ChangeHandlers()
         self._connect_handlers()
         self._init_camera()
@@ -164,6 +165,8 @@ class ViewerEngine:
                 self.view.set_cloud(empty)
             return
         self.cloud, photo = loaded
+        self.floor_y = scan_floor(self.cloud.ldr.positions, self.cloud.ldr.normals)
+        self.sync_nav()
         if photo is not None or self.session.photo is None:
             self.photo = photo
         self.view.set_cloud(self.cloud.ldr)
@@ -289,6 +292,12 @@ class ViewerEngine:
     def _on_camera(self, keys) -> None:
         if self.session.camera is not None:
             self.nav = ViewNavigator.from_camera(self.session.camera)
+            self.sync_nav()
+
+    def sync_nav(self) -> None:
+        """The navigator keeps the eye above the scan's floor unless the user freed it."""
+        self.nav.floor_y = self.floor_y
+        self.nav.free = bool(self.session.settings["view.free_orbit"])
 
     def _redo_room(self, keys) -> None:
         self._room_dirty = self._composite_dirty = True
@@ -315,6 +324,7 @@ class ViewerEngine:
         t0 = time.perf_counter()
         self.reset_gl_state()
         self.apply_changes()
+        self.sync_nav()
         cam = self.camera()
         key = (tuple(np.round(cam.position, 9)), tuple(np.round(cam.look_at, 9)),
                cam.fov_y_deg, cam.width, cam.height)

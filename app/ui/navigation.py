@@ -8,6 +8,14 @@ the horizon); the eye sits ``distance`` behind the pivot along the view directio
     eye     = pivot - distance * forward
 
 Orbit turns the eye about the pivot; fly turns the view about the eye and moves both together.
+
+The floor: a user who orbits under the scan sees the back of the floor splats and loses the
+room, so by default every motion keeps the eye ``FLOOR_CLEARANCE`` above the scan's floor
+(``floor_y``, found by ``scan_floor``). Orbiting down stops at the lowest pitch that keeps that
+height (the yaw still turns); pan, zoom, frame and fly lift pivot and eye together by what is
+missing. ``free = True`` (the viewer's "free orbit" setting) lifts the constraint. A view placed
+explicitly (``from_camera``, ``look_from``: a saved session, "move to" a capture camera) is kept
+as given; only the motions that follow are constrained.
 """
 
 from __future__ import annotations
@@ -22,6 +30,25 @@ ORBIT_RAD_PER_PX = 0.006      # a 500 px drag turns the view by about 170 degree
 ZOOM_STEP = 0.85               # one wheel notch moves the eye 15% closer to the pivot
 MIN_DISTANCE = 1e-3
 MAX_PITCH = math.radians(89.0)  # never exactly vertical: 'up' would be undefined
+FLOOR_CLEARANCE = 0.05          # metres the eye keeps above the scan's floor (a head above a rug)
+FLOOR_PERCENTILE = 5.0          # of the heights of upward-facing points (below: stray points)
+
+
+def scan_floor(points, normals=None) -> float | None:
+    """The floor height (y is up) of a room scan: the 5th percentile of the heights of points
+    whose normal points up (a floor is the lowest large upward-facing population; the few
+    percent below it are noise and stray points), else of all heights; None below 16 points."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    finite = np.isfinite(p).all(axis=1)
+    y = p[finite, 1]
+    if normals is not None:
+        n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)[finite]
+        up = n[:, 1] > 0.8
+        if up.sum() >= 16:
+            y = y[up]
+    if len(y) < 16:
+        return None
+    return float(np.percentile(y, FLOOR_PERCENTILE))
 
 
 class ViewNavigator:
@@ -32,6 +59,8 @@ class ViewNavigator:
         self.yaw = float(yaw)
         self.pitch = float(pitch)
         self.fov_y_deg = float(fov_y_deg)
+        self.floor_y: float | None = None   # the scan's floor; None: no constraint
+        self.free = False                   # True: orbit anywhere, under the floor too
 
     # -- conversions -----------------------------------------------------------------------------
     @property
@@ -69,10 +98,29 @@ class ViewNavigator:
         self.yaw, self.pitch = nav.yaw, nav.pitch
 
     # -- orbit / pan / zoom ----------------------------------------------------------------------
+    def _lowest_eye(self) -> float | None:
+        if self.free or self.floor_y is None:
+            return None
+        return self.floor_y + FLOOR_CLEARANCE
+
+    def _lift(self) -> None:
+        """Raise pivot and eye together until the eye clears the floor."""
+        lo = self._lowest_eye()
+        if lo is not None and self.position[1] < lo:
+            self.pivot[1] += lo - self.position[1]
+
     def orbit(self, dx_px: float, dy_px: float) -> None:
         """Mouse drag in pixels (y down): the scene follows the hand, as in Blender."""
         self.yaw = (self.yaw + dx_px * ORBIT_RAD_PER_PX) % (2 * math.pi)
-        self.pitch = float(np.clip(self.pitch - dy_px * ORBIT_RAD_PER_PX, -MAX_PITCH, MAX_PITCH))
+        pitch = float(np.clip(self.pitch - dy_px * ORBIT_RAD_PER_PX, -MAX_PITCH, MAX_PITCH))
+        lo = self._lowest_eye()
+        if lo is not None:
+            # eye.y = pivot.y - distance * sin(pitch) >= lo  <=>  sin(pitch) <= s
+            s = (self.pivot[1] - lo) / self.distance
+            if s < 1.0:
+                pitch = min(pitch, max(math.asin(max(s, -1.0)), -MAX_PITCH))
+        self.pitch = pitch
+        self._lift()        # a pivot too far below the floor for any pitch
 
     def pan(self, dx_px: float, dy_px: float, viewport_height_px: int) -> None:
         """Move pivot and eye so the point at the pivot's depth stays under the cursor."""
@@ -80,10 +128,12 @@ class ViewNavigator:
         metres_per_px = 2 * self.distance * math.tan(math.radians(self.fov_y_deg) / 2) / max(
             viewport_height_px, 1)
         self.pivot += (-dx_px * r + dy_px * u) * metres_per_px
+        self._lift()
 
     def zoom(self, notches: float) -> None:
         """Wheel: positive notches move the eye towards the pivot (geometric, never through it)."""
         self.distance = max(self.distance * ZOOM_STEP ** notches, MIN_DISTANCE)
+        self._lift()
 
     def dolly_drag(self, dy_px: float) -> None:
         """Ctrl+drag zoom (Blender) / Alt+RMB (Maya): drag up moves closer."""
@@ -96,6 +146,7 @@ class ViewNavigator:
         half = min(half_v, half_h)
         self.pivot = np.asarray(centre, dtype=np.float64).copy()
         self.distance = max(1.1 * float(radius) / math.sin(half), MIN_DISTANCE)
+        self._lift()
 
     # -- fly mode --------------------------------------------------------------------------------
     def look(self, dx_px: float, dy_px: float) -> None:
@@ -105,9 +156,11 @@ class ViewNavigator:
         self.pitch = float(np.clip(self.pitch - dy_px * ORBIT_RAD_PER_PX * 0.5,
                                    -MAX_PITCH, MAX_PITCH))
         self.pivot = eye + self.distance * self.forward
+        self._lift()
 
     def fly(self, forward: float, right: float, up: float) -> None:
         """Move eye and pivot together, in metres along the view axes (up = world up)."""
         r, _, f = self.basis()
         self.pivot += forward * f + right * r + up * np.array([0.0, 1.0, 0.0])
+        self._lift()
 

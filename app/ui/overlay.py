@@ -96,8 +96,7 @@ def draw_status(ui) -> None:
         x0, y0 = w - bar_w - 12, h - 26
         dl.add_rect_filled((x0, y0), (x0 + bar_w, y0 + 14), _col(0, 0, 0, 0.6), 3)
         dl.add_rect_filled((x0, y0), (x0 + bar_w * frac, y0 + 14), _col(0.3, 0.6, 1.0, 0.9), 3)
-        label = (f"preview at 1/{1 / e.gi.effective_scale:.0f} resolution" if frac == 0 else
-                 f"refining {100 * frac:.0f}%")
+        label = e.gi.status_words()       # "refining 40%, about 6 s left"
         backed_text(dl, (x0 - 12 - imgui.calc_text_size(label).x, y0), label, (1, 1, 1))
     task = ui.hdr_task
     if task is not None and task.running:

@@ -10,14 +10,21 @@ time budget:
    weights guided by a full-resolution G-buffer of the asset (normal and depth, rasterised every
    frame), as Ritschel et al. 2009 Section 2.4 do, so the silhouette is sharp at once and colours
    do not bleed across depth edges. One render call cannot be interrupted, so the scale is
-   chosen *before* rendering from the measured cost per pixel (about two frame budgets, never
-   below 1/16; 1/8 for the very first preview) and adapted after it: slow previews lower it,
+   chosen *before* rendering from the measured cost per pixel (about one frame budget, never
+   below 1/16; 1/16 for the very first one) and adapted after it: slow previews lower it,
    fast ones climb back to the setting.
 2. *Tiles* (only once nothing has changed for a frame): the layer is re-rendered at full layer
    resolution in strips of square cells, centre rows first. The cell side (8..64 px) and the
    strip length come from the measured cost per pixel so each frame stays near the budget (at
    least one cell per frame, so refinement always advances). Cells not yet rendered keep
-   showing the upsampled preview. ``progress`` tells the UI how far it got.
+   showing the upsampled preview. ``progress`` tells the UI how far it got, ``status_words``
+   says it in words with the time left.
+
+Slicing: one render call cannot be interrupted and costs a fixed set-up (several ms) plus its
+pixels, and the cost per pixel varies over the asset. So a cell is sized to about half a frame
+budget (rounded down to a power of two) and a frame starts another run of cells only when the
+predicted cost still fits the budget; the window then draws imgui (and sees the user's input)
+at least every budget or so, instead of after a run that overshot it several times.
 
 The render function is injected (``render(camera, tile) -> (h, w, 4) float32`` GI_TEXEL texels:
 radiance, and 1 on the asset, 0 off it): the viewer passes the real PBGI renderer; tests check
@@ -39,7 +46,7 @@ from app.render.gpu_layout import GI_PENDING, GI_TEXEL
 CELL = 32                 # tile granularity before the cost per pixel is known
 MIN_CELL, MAX_CELL = 8, 64
 MIN_PREVIEW_SCALE = 1 / 16
-FIRST_PREVIEW_SCALE = 1 / 8  # before any cost per pixel is known
+FIRST_PREVIEW_SCALE = 1 / 16  # before any cost per pixel is known: the cheapest
 
 
 def gi_image(height: int, width: int) -> np.ndarray:
@@ -106,10 +113,12 @@ class ProgressiveGI:
         self.rect = None
         self.preview_scale = 0.25
         self.effective_scale = 0.25
+        self.shown_scale = 0.25        # the scale of the preview on screen
         self.ms_per_px: float | None = None
         self._bands: list[list] = []
         self._cells_total = 0
         self._cells_done = 0
+        self._tiles_since: float | None = None   # clock when this refinement's tiles began
         self._preview_pending = False
         self.preview_dirty = False
         self.full_reset = False
@@ -127,13 +136,44 @@ class ProgressiveGI:
     def refining(self) -> bool:
         return self._preview_pending or self._cells_done < self._cells_total
 
+    def seconds_left(self) -> float | None:
+        """Wall-clock estimate of the refinement still to come, from the rate at which the tiles
+        advanced since they started (the frames' other work included); None until there is
+        enough to go on (5% of the cells or half a second)."""
+        if not self.refining or self._tiles_since is None or self._cells_total == 0:
+            return None
+        p = self._cells_done / self._cells_total
+        elapsed = self.clock() - self._tiles_since
+        if p <= 0 or (p < 0.05 and elapsed < 0.5):
+            return None
+        return elapsed * (1 - p) / p
+
+    def status_words(self) -> str:
+        """What the GI is doing, for the overlay: "preview at 1/4 resolution", "refining 40%,
+        about 6 s left", "converged"."""
+        if not self.refining:
+            return "converged"
+        if self.progress == 0:
+            return f"preview at 1/{1 / self.shown_scale:.0f} resolution"
+        left = self.seconds_left()
+        if left is None:
+            eta = "estimating the time left"
+        elif left < 1:
+            eta = "less than 1 s left"
+        elif left < 90:
+            eta = f"about {left:.0f} s left"
+        else:
+            eta = f"about {left / 60:.0f} min left"
+        return f"refining {100 * self.progress:.0f}%, {eta}"
+
     # -- control ---------------------------------------------------------------------------------
     def cell_size(self, budget_ms: float) -> int:
-        """Square cells that cost about one frame budget each (a power of two in 8..64)."""
+        """Square cells that cost at most about half a frame budget each (a power of two in
+        8..64, rounded down)."""
         if not self.ms_per_px:
             return CELL
-        side = math.sqrt(max(budget_ms, 1e-3) / self.ms_per_px)
-        return int(min(max(2 ** round(math.log2(max(side, 1.0))), MIN_CELL), MAX_CELL))
+        side = math.sqrt(max(budget_ms, 1e-3) * 0.5 / self.ms_per_px)
+        return int(min(max(2 ** math.floor(math.log2(max(side, 1.0))), MIN_CELL), MAX_CELL))
 
     def restart(self, camera: Camera, rect, preview_scale: float, budget_ms: float = 60.0) -> None:
         """New view/material/setting: everything must be gathered again, preview first."""
@@ -154,6 +194,7 @@ class ProgressiveGI:
         self._bands = [] if rect is None else strip_tiles(rect, self.cell_size(budget_ms))
         self._cells_total = sum(len(b) for b in self._bands)
         self._cells_done = 0
+        self._tiles_since = None
         self._preview_pending = rect is not None
         if rect is None:  # asset off screen: nothing to draw
             self.preview = gi_image(1, 1)
@@ -174,11 +215,20 @@ class ProgressiveGI:
             changed = True
         while allow_tiles and self._bands:
             elapsed = (self.clock() - start) * 1e3
-            if changed and elapsed >= budget_ms:
-                break
+            if changed and elapsed + self._cell_ms() > budget_ms:
+                break       # the next cell would overshoot: let the window draw and listen
+            if self._tiles_since is None:
+                self._tiles_since = self.clock()
             self._tile(max(budget_ms - elapsed, budget_ms * 0.25))
             changed = True
         return changed
+
+    def _cell_ms(self) -> float:
+        """Predicted cost of the next cell (0 before any cost is known)."""
+        if not self.ms_per_px or not self._bands:
+            return 0.0
+        c = self._bands[0][0]
+        return self.ms_per_px * c[2] * c[3]
 
     def finish(self) -> None:
         """Complete the refinement now (screenshots, offscreen runs)."""
@@ -189,10 +239,10 @@ class ProgressiveGI:
     def _preview(self, budget_ms: float) -> None:
         cam, rect = self.camera, self.rect
         s = self.effective_scale
-        # Predict before rendering (one call cannot be interrupted): at most about two frame
-        # budgets at the measured cost per pixel; 1/8 until a cost has been measured.
+        # Predict before rendering (one call cannot be interrupted): about one frame budget at
+        # the measured cost per pixel; 1/16 until a cost has been measured.
         if self.ms_per_px:
-            fit = math.sqrt(2.0 * budget_ms / (self.ms_per_px * max(rect[2] * rect[3], 1)))
+            fit = math.sqrt(budget_ms / (self.ms_per_px * max(rect[2] * rect[3], 1)))
             s = min(s, max(MIN_PREVIEW_SCALE, fit))
         else:
             s = min(s, FIRST_PREVIEW_SCALE)
@@ -208,6 +258,7 @@ class ProgressiveGI:
         self.preview = gi_image(small.height, small.width)
         self.preview[y0:y1, x0:x1] = lo
         self.preview_camera = small
+        self.shown_scale = s
         self.preview_dirty = True
         self._preview_pending = False
         # Adapt: keep the preview within the budget, climb back when it is cheap.
@@ -217,14 +268,27 @@ class ProgressiveGI:
         elif ms < 0.3 * budget_ms:
             self.effective_scale = min(self.preview_scale, s / 0.7)
         if (x1 - x0) * (y1 - y0):
-            self._learn(ms, (x1 - x0) * (y1 - y0))
+            self._learn(ms, lo)
         if self._cells_done == 0:  # now that the cost per pixel is known, size the cells
             self._bands = strip_tiles(rect, self.cell_size(budget_ms))
             self._cells_total = sum(len(b) for b in self._bands)
 
-    def _learn(self, ms: float, npx: int) -> None:
+    def _learn(self, ms: float, img: np.ndarray) -> None:
+        """Learn the cost per pixel from a render of ``img``'s pixels. Pixels off the asset cost
+        almost nothing, so a render mostly off it (the corners of the asset's rectangle) would
+        make the asset look cheap and the next strip overshoot. So the estimate rises at once
+        and falls only by as much as the render was on the asset (nothing for a render off
+        it, half-way for one at least a quarter on it): frames err on the short side."""
+        npx = img.shape[0] * img.shape[1]
+        if npx == 0:
+            return
         per = ms / npx
-        self.ms_per_px = per if self.ms_per_px is None else 0.5 * (self.ms_per_px + per)
+        if self.ms_per_px is None or per > self.ms_per_px:
+            self.ms_per_px = per
+            return
+        on_asset = float((img[..., GI_TEXEL.index("status")] > 0).mean())
+        w = 0.5 * min(on_asset / 0.25, 1.0)
+        self.ms_per_px = (1 - w) * self.ms_per_px + w * per
 
     def _tile(self, budget_ms: float) -> None:
         band = self._bands[0]
@@ -238,7 +302,7 @@ class ProgressiveGI:
         h = run[0][3]
         t0 = self.clock()
         img = self.render(self.camera, (x0, y0, w, h))
-        self._learn((self.clock() - t0) * 1e3, w * h)
+        self._learn((self.clock() - t0) * 1e3, img)
         self.full[y0:y0 + h, x0:x0 + w] = img
         self.dirty_rects.append((x0, y0, w, h))
         del band[:cells]

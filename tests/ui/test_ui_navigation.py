@@ -88,3 +88,77 @@ def test_look_from_points_at_the_target():
     cam = nav.camera(64, 64)
     np.testing.assert_allclose(cam.position, (0.5, 1.4, 0.8), atol=1e-12)
     np.testing.assert_allclose(_pixel(cam, np.array([0.0, 0.6, 0.0])), (32, 32), atol=1e-9)
+
+
+def _room(floor=-1.3, seed=0):
+    """A synthetic scan: a noisy floor at ``floor``, two walls, a table top, strays below."""
+    rng = np.random.default_rng(seed)
+    n = 4000
+    fl = np.c_[rng.uniform(-2, 2, n), floor + rng.normal(0, 0.003, n), rng.uniform(-2, 2, n)]
+    wall = np.c_[rng.uniform(-2, 2, n), rng.uniform(floor, floor + 2.5, n), np.full(n, -2.0)]
+    table = np.c_[rng.uniform(-0.5, 0.5, 500), np.full(500, floor + 0.7), rng.uniform(-0.5, 0.5, 500)]
+    strays = np.c_[rng.uniform(-2, 2, 40), floor - rng.uniform(0.2, 1.0, 40), rng.uniform(-2, 2, 40)]
+    pts = np.vstack([fl, wall, table, strays])
+    nrm = np.vstack([np.tile([0, 1, 0], (n, 1)), np.tile([0, 0, 1], (n, 1)),
+                     np.tile([0, 1, 0], (500, 1)), np.tile([0, 1, 0], (40, 1))]).astype(float)
+    return pts, nrm
+
+
+def test_scan_floor_finds_the_floor_under_noise_and_strays():
+    from app.ui.navigation import scan_floor
+    pts, nrm = _room()
+    assert scan_floor(pts, nrm) == pytest.approx(-1.3, abs=0.01)
+    assert scan_floor(pts) == pytest.approx(-1.3, abs=0.02)       # without normals
+    assert scan_floor(pts[:5]) is None
+
+
+def test_scan_floor_of_the_demo_room():
+    from app.demo.cache import load_demo
+    from app.ui.navigation import scan_floor
+    scene = load_demo()
+    floor = scan_floor(scene.ldr.positions, scene.ldr.normals)
+    # the demo room's floor is its lowest surface (app/demo/room.py)
+    assert floor == pytest.approx(float(np.min(scene.ldr.positions[:, 1])), abs=0.02)
+
+
+def _nav_above(floor=-1.3):
+    from app.ui.navigation import ViewNavigator
+    nav = ViewNavigator(pivot=(0.0, -0.8, 0.0), distance=2.0, pitch=-0.3)
+    nav.floor_y = floor
+    return nav
+
+
+def test_orbit_stops_above_the_floor_and_still_turns():
+    from app.ui.navigation import FLOOR_CLEARANCE
+    nav = _nav_above()
+    yaw0 = nav.yaw
+    for _ in range(50):
+        nav.orbit(20, -200)            # drag up: the eye goes down
+        assert nav.position[1] >= -1.3 + FLOOR_CLEARANCE - 1e-9
+    assert nav.position[1] == pytest.approx(-1.3 + FLOOR_CLEARANCE)   # it stopped right there
+    assert nav.yaw != yaw0
+    nav.orbit(0, 100)                  # and comes back up at once
+    assert nav.position[1] > -1.3 + FLOOR_CLEARANCE + 0.1
+
+
+def test_free_orbit_goes_under_the_floor():
+    nav = _nav_above()
+    nav.free = True
+    for _ in range(10):
+        nav.orbit(0, -200)
+    assert nav.position[1] < -1.3
+
+
+def test_pan_zoom_and_fly_lift_the_eye_above_the_floor():
+    from app.ui.navigation import FLOOR_CLEARANCE
+    lo = -1.3 + FLOOR_CLEARANCE
+    nav = _nav_above()
+    nav.pan(0, 5000, 600)              # drag down: the view moves down
+    assert nav.position[1] >= lo - 1e-9
+    nav = _nav_above()
+    nav.pivot[1] = -2.0                # a pivot below the floor (a gizmo target, say)
+    nav.zoom(-5)
+    assert nav.position[1] >= lo - 1e-9
+    nav = _nav_above()
+    nav.fly(0, 0, -10)
+    assert nav.position[1] >= lo - 1e-9

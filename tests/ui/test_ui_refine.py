@@ -5,6 +5,7 @@ tiling with the real PBGI renderer."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from app.camera import Camera
 from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect, strip_tiles
@@ -81,7 +82,7 @@ def test_converged_layer_equals_a_direct_render():
     assert not gi.refining and gi.progress == 1.0
     direct = sphere_image(CAM, (0, 0, CAM.width, CAM.height))
     np.testing.assert_array_equal(gi.full, direct)          # tiling changes nothing
-    small = scaled_camera(CAM, 1 / 8)          # the first preview, before any cost is known
+    small = scaled_camera(CAM, 1 / 16)          # the first preview, before any cost is known
     assert gi.preview_camera.width == small.width
     assert gi.preview.shape[:2] == (small.height, small.width)
     np.testing.assert_array_equal(gi.preview[..., 3] > 0, sphere_image(
@@ -127,20 +128,21 @@ def test_steps_respect_the_budget_and_tiles_wait_for_idle():
     gi = ProgressiveGI(clock.render, clock)
     rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
     gi.restart(CAM, rect, 0.25, budget_ms=20)
-    gi.step(20, allow_tiles=False)            # interacting: preview only (first one at 1/8)
-    assert [c[0] for c in clock.calls] == [15] and gi.progress == 0.0 and gi.refining
+    gi.step(20, allow_tiles=False)            # interacting: preview only (first one at 1/16)
+    assert [c[0] for c in clock.calls] == [8] and gi.progress == 0.0 and gi.refining
     gi.step(20, allow_tiles=False)
     assert len(clock.calls) == 1              # still nothing more while interacting
-    # Cells were sized from the measured cost: 20 ms / 0.05 ms/px = 400 px -> 16 x 16 (2^4).
-    assert gi.cell_size(20) == 16
+    # Cells were sized from the measured cost to at most half a budget, rounded down to a power
+    # of two: 10 ms / 0.05 ms/px = 200 px -> side 14.1 -> 8 x 8.
+    assert gi.cell_size(20) == 8
     last = 0.0
     while gi.refining:
         t0 = clock.t
         n = len(clock.calls)
         gi.step(20)
         spent = (clock.t - t0) * 1e3
-        # the budget is respected up to one strip (a strip is sized from the budget itself)
-        assert spent <= 20 + 16 * 16 * 0.05 * 2 + 1e-9
+        # the budget is respected: a frame starts another cell only when it still fits
+        assert spent <= 20 + 1e-9
         assert len(clock.calls) > n           # every frame advances
         assert gi.progress >= last
         last = gi.progress
@@ -149,19 +151,19 @@ def test_steps_respect_the_budget_and_tiles_wait_for_idle():
 
 def test_preview_scale_is_predicted_from_the_cost_per_pixel():
     """One render call cannot be interrupted: once the cost per pixel is known, the preview of a
-    large asset rectangle is sized to about two frame budgets before it is rendered (above the
-    1/16 floor: here the fit is about 1/10)."""
+    large asset rectangle is sized to about one frame budget before it is rendered (above the
+    1/16 floor: here the fit is about 1/14)."""
     clock = Clock(0.02)
     gi = ProgressiveGI(clock.render, clock)
     big = Camera(CAM.position, CAM.look_at, fov_y_deg=50, width=1200, height=900)
     rect = screen_rect(big, CENTRE - RADIUS, CENTRE + RADIUS)
     gi.restart(big, rect, 0.25, budget_ms=40)
-    gi.step(40, allow_tiles=False)             # first preview at 1/8 teaches the cost
+    gi.step(40, allow_tiles=False)             # first preview at 1/16 teaches the cost
     for _ in range(3):
         gi.restart(big, rect, 0.25, budget_ms=40)
         t0 = clock.t
         gi.step(40, allow_tiles=False)
-        assert (clock.t - t0) * 1e3 <= 2 * 40 * 1.3   # two budgets (+ rounding up of sizes)
+        assert (clock.t - t0) * 1e3 <= 40 * 1.3   # one budget (+ rounding up of sizes)
 
 
 def test_slow_previews_lower_the_preview_scale():
@@ -192,3 +194,52 @@ def test_restart_resets_only_the_old_and_new_rectangles():
     x, y, w, h = moved
     assert (gi.full[y:y + h, x:x + w, 3] == -1).all()        # pending, not stale
     assert (gi.full[rect[1]:rect[1] + rect[3], rect[0]:rect[0] + 10, 3] == 0).all()
+
+
+def test_the_overlay_says_what_the_refinement_does_and_how_long_it_takes():
+    """Words, not counters: the preview, then "refining N%, about T s left" with T from the
+    wall-clock rate of progress (the frames' other work included), "converged" at the end; a
+    restart starts the estimate again."""
+    clock = Clock(0.05)
+    gi = ProgressiveGI(clock.render, clock)
+    big = Camera(CAM.position, CAM.look_at, fov_y_deg=50, width=480, height=360)
+    rect = screen_rect(big, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(big, rect, 0.25, budget_ms=20)
+    gi.step(20, allow_tiles=False)
+    assert gi.status_words() == "preview at 1/16 resolution"
+    gi.step(20)                                   # the first tiles: too early to tell
+    assert gi.status_words().endswith(", estimating the time left")
+    words = []
+    while gi.refining:
+        clock.t += 0.080                          # each frame also spends 80 ms elsewhere
+        gi.step(20)
+        words.append(gi.status_words())
+        if gi.refining and gi.seconds_left() is not None:
+            p = gi.progress
+            elapsed = clock.t - gi._tiles_since
+            assert gi.seconds_left() == pytest.approx(elapsed * (1 - p) / p)
+    assert words[-1] == "converged"
+    assert any(w.startswith("refining") and w.endswith(" s left") and "about" in w
+               for w in words), words
+    # halfway through a new refinement the estimate is the time spent so far
+    gi.restart(big, rect, 0.25, budget_ms=20)
+    assert gi.seconds_left() is None and gi.status_words().startswith("preview")
+    gi.step(20)
+    while gi.progress < 0.5:
+        clock.t += 0.080
+        gi.step(20)
+    left = gi.seconds_left()
+    assert left == pytest.approx((clock.t - gi._tiles_since) * (1 - gi.progress) / gi.progress)
+    assert f"refining {100 * gi.progress:.0f}%, about {left:.0f} s left" == gi.status_words()
+
+
+def test_time_left_is_said_in_minutes_beyond_ninety_seconds():
+    clock = Clock(0.05)
+    gi = ProgressiveGI(clock.render, clock)
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.25, budget_ms=20)
+    gi.step(20, allow_tiles=False)
+    gi.step(20)
+    clock.t += 60.0                               # a very slow machine
+    gi.step(20)
+    assert gi.status_words().endswith(" min left")

@@ -21,8 +21,7 @@ def draw(ui) -> None:
     imgui.text(f"room {st.get('room_ms', 0):.0f} ms   GI {st.get('gi_frame_ms', 0):.0f} ms/frame")
     if e.renderer_available:
         mode = ui.session.settings["pbgi.mode"]
-        state = (f"refining {100 * st['progress']:.0f}%" if st["refining"] else "converged")
-        imgui.text(f"{mode}: {state}, preview 1/{1 / st['preview_scale']:.0f}")
+        imgui.text(f"{mode}: {e.gi.status_words()}")
         gi = e.gi_stats
         if gi is not None:
             imgui.text(f"gather {gi.ms:.0f} ms, {int(gi.nodes_visited):,} nodes, {gi.mb:.0f} MB")

@@ -6,11 +6,11 @@ project's own tooling through the viewer's automation option.
     python -m app.ui.screenshot [--out assets/screenshot.png] [--size 1280x800] [--no-expand]
     (packaging/screenshot.sh runs the first under Xvfb when there is no display)
 
-This file is the ``--script``: it runs the HDR expansion from the demo's capture camera with the
-viewer's settings, as a user pressing "Run expansion" would (shown
-with the expansion's report in the HDR panel), lets the progressive refinement of the relit asset
-finish, then saves the window's framebuffer and quits. ``main`` starts ``scanlight view`` with
-it, re-running itself under xvfb-run without a display.
+This file is the ``--script``: it waits for the demo's own HDR light (app/ui/demo_light.py), or
+runs the HDR expansion from the session's capture cameras with the viewer's settings when the
+room has no HDR colours yet, as a user pressing "Run expansion" would, lets the progressive
+refinement of the relit asset finish, then saves the window's framebuffer and quits. ``main``
+starts ``scanlight view`` with it, re-running itself under xvfb-run without a display.
 """
 
 from __future__ import annotations
@@ -50,7 +50,10 @@ def on_frame(viewer, frame):
         viewer.session.settings.set("pbgi.frame_budget_ms", FRAME_BUDGET_MS)
     opts = state["opts"]
     if state["step"] == 0 and frame >= 2:
-        if opts["expand"] not in ("no", "0", "false"):
+        if viewer.hdr_task is not None:       # the demo's own HDR light is on its way
+            return
+        has_hdr = e.cloud is not None and e.cloud.hdr is not None
+        if opts["expand"] not in ("no", "0", "false") and not has_hdr:
             viewer.start_expansion(synchronous=True)
             viewer.poll_expansion()
         state["step"], state["since"] = 1, frame

@@ -57,7 +57,8 @@ def _run_controls(ui) -> None:
         e.guard("starting the HDR expansion", ui.start_expansion)
         ui.textures.drop(PHOTO)   # re-made with the alpha found; freed after this frame
     imgui.end_disabled()
-    tooltip(missing or "Runs in the background; the viewport stays interactive.")
+    tooltip("Running in the background: Cancel stops it." if running else
+            missing or "Runs in the background; the viewport stays interactive.")
     imgui.same_line()
     imgui.begin_disabled(not running)
     if imgui.button("Cancel") and running:

@@ -12,6 +12,11 @@ The integration also forwards only navigation keys and no modifiers, so Ctrl+cli
 letters, digits, function keys and the modifier state go to imgui too (the modifiers before
 every key and button event, as imgui's own backends do).
 
+A release that arrives in the same frame as the motion before it would end a slider drag short:
+imgui drops the active widget on the frame it sees the button up, before applying that frame's
+mouse position. So such a release is handed to imgui one frame later (``frame_started``), after
+the frame that applied the last position; a slider then lands where the hand let go.
+
 Positions are in window pixels, top-left origin, as pyglet reports them through
 moderngl-window.
 """
@@ -55,6 +60,8 @@ class ImguiInput:
                          wnd.mouse.right: imgui.MouseButton_.right,
                          wnd.mouse.middle: imgui.MouseButton_.middle}
         self._keys = _keymap(wnd.keys)
+        self._moved = False          # a position event since imgui's last new_frame
+        self._held_releases: list = []
 
     def modifiers(self, mods=None) -> None:
         m = self.wnd.modifiers if mods is None else mods
@@ -63,16 +70,30 @@ class ImguiInput:
         io.add_key_event(imgui.Key.mod_shift, bool(m.shift))
         io.add_key_event(imgui.Key.mod_alt, bool(m.alt))
 
-    @staticmethod
-    def move(x, y) -> None:
+    def move(self, x, y) -> None:
         imgui.get_io().add_mouse_pos_event(float(x), float(y))
+        self._moved = True
 
     def button(self, x, y, button, down: bool) -> None:
         self.modifiers()
-        self.move(x, y)
         which = self._buttons.get(button)
-        if which is not None:
-            imgui.get_io().add_mouse_button_event(int(which), bool(down))
+        if which is None:
+            self.move(x, y)
+            return
+        if not down and (self._moved or self._held_releases):
+            self.move(x, y)
+            self._held_releases.append(int(which))   # after the frame that applies the move
+            return
+        self.move(x, y)
+        imgui.get_io().add_mouse_button_event(int(which), bool(down))
+
+    def frame_started(self) -> None:
+        """Call right after ``imgui.new_frame()``: releases held back from the events of this
+        frame go to the queue for the next one."""
+        for which in self._held_releases:
+            imgui.get_io().add_mouse_button_event(which, False)
+        self._held_releases.clear()
+        self._moved = False
 
     @staticmethod
     def wheel(dx, dy) -> None:

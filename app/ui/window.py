@@ -386,6 +386,7 @@ class ViewerWindow:
         io = imgui.get_io()
         io.delta_time = max(dt, 1e-4)
         imgui.new_frame()
+        self.input.frame_started()
         imguizmo.im_guizmo.begin_frame()
         self.engine.guard("viewport overlay", overlay.draw, self)
         panels.draw(self)

@@ -73,7 +73,7 @@ class XInput:
         self._sync()
 
     def drag(self, start, end, steps: int = 12, button: str = "left", step_s: float = 0.03,
-             settle_s: float = 0.3, hold_s: float = 0.25) -> None:
+             settle_s: float = 0.3, hold_s: float = 0.03) -> None:
         (x0, y0), (x1, y1) = start, end
         self.move(x0, y0, settle_s)
         self.press(button)
@@ -81,7 +81,7 @@ class XInput:
         for i in range(1, steps + 1):
             t = i / steps
             self.move(x0 + (x1 - x0) * t, y0 + (y1 - y0) * t, step_s)
-        time.sleep(hold_s)         # the hand rests at the end before letting go
+        time.sleep(hold_s)         # a quick release: 30 ms after the last motion
         self.release(button)
         self._sync()
 

@@ -46,8 +46,8 @@ def test_every_mode_is_created_by_name(ctx):
 
 
 def test_a_mode_is_re_created_only_when_a_construction_parameter_changes(furnace):
-    classic = furnace.mode_for(RenderParams(microbuffer=8))
-    assert furnace.mode_for(RenderParams(microbuffer=16, memory_budget_mb=2.0)) is classic
+    classic = furnace.mode_for(RenderParams(mode="classic", microbuffer=8))
+    assert furnace.mode_for(RenderParams(mode="classic", microbuffer=16, memory_budget_mb=2.0)) is classic
     shared = furnace.mode_for(RenderParams(mode="hybrid"))
     assert isinstance(shared.cut, FarFieldShare)
     assert furnace.mode_for(RenderParams(mode="hybrid", microbuffer=8)) is shared
@@ -55,7 +55,7 @@ def test_a_mode_is_re_created_only_when_a_construction_parameter_changes(furnace
     assert exact is not shared and isinstance(exact.cut, PairRefiner)
     assert furnace.mode_for(RenderParams(mode="hybrid", parallax_tolerance=0.0,
                                          omega_tr_factor=8.0)) is not exact
-    assert furnace.mode_for(RenderParams(microbuffer=8)) is classic
+    assert furnace.mode_for(RenderParams(mode="classic", microbuffer=8)) is classic
 
 
 @pytest.mark.parametrize("mode", RENDER_MODES)

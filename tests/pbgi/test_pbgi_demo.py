@@ -14,7 +14,7 @@ from app.pbgi.renderer import RenderParams
 def test_demo_views_render_completely(demo_relighter, view):
     cam = default_views(24, 24)[view]
     mat = Material(base_color=(0.8, 0.8, 0.8), roughness=0.6)
-    res = demo_relighter.render(cam, [mat], RenderParams(microbuffer=16))
+    res = demo_relighter.render(cam, [mat], RenderParams(mode="classic", microbuffer=16))
     s = res.stats
     assert s.completed and s.receivers > 20 and s.nodes_visited > 100
     img = res.image

@@ -161,15 +161,15 @@ def test_sliced_walk_fills_the_same_microbuffers(room):
     exactly where it stopped: every micro-pixel ends up identical to a few large dispatches."""
     m = 16
     mat = S.diffuse()
-    res = room.render(CAM, [mat], RenderParams(microbuffer=m))
+    res = room.render(CAM, [mat], RenderParams(mode="classic", microbuffer=m))
     full = room.microbuffers.read(res.stats.receivers).copy()
     assert res.stats.completed and res.stats.rounds <= 3
-    mode = room.mode_for(RenderParams(microbuffer=m))
+    mode = room.mode_for(RenderParams(mode="classic", microbuffer=m))
     default, mode.cut = mode.cut, ClassicCut(room.ctx, steps=37, splat_budget=entries(m),
                                              list_cap=4)
     try:
         room.forget_microbuffers()
-        res2 = room.render(CAM, [mat], RenderParams(microbuffer=m))
+        res2 = room.render(CAM, [mat], RenderParams(mode="classic", microbuffer=m))
         sliced = room.microbuffers.read(res2.stats.receivers)
     finally:
         mode.cut.release()
@@ -185,7 +185,7 @@ def test_microbuffer_entries_are_visible_nodes(room):
     (numpy ray-sphere test), in front of the receiver, not entirely below its horizon; a closed
     room leaves (almost) no micro-pixel empty."""
     m = 16
-    res = room.render(CAM, [S.diffuse()], RenderParams(microbuffer=m))
+    res = room.render(CAM, [S.diffuse()], RenderParams(mode="classic", microbuffer=m))
     n = res.stats.receivers
     mb = room.microbuffers.read(n)
     rec = room.last_receivers                      # in micro-buffer row order

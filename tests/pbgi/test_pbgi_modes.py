@@ -145,7 +145,7 @@ def test_hybrid_shares_the_walk(demo_relighter):
     r = demo_relighter
     cam = default_views(32, 32)["closeup"]
     rec = _receivers(r, cam)
-    _, classic = _fill(r, r.mode_for(RenderParams()).cut, rec, 16, cam.width)
+    _, classic = _fill(r, r.mode_for(RenderParams(mode="classic")).cut, rec, 16, cam.width)
     walks = {}
     for factor in (32.0, 6.0):
         _, res = _fill(r, PairRefiner(r.ctx, omega_tr_factor=factor), rec, 16, cam.width)

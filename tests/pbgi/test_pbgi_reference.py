@@ -16,7 +16,7 @@ def _compare(relighter, cloud, cam, mat, m, n_samples, seed=0):
     gb = S.reference_gbuffer(relighter, cam, mat)
     ref, err = reference_render(gb, cloud.positions, cloud.normals, cloud.colors,
                                 n_samples=n_samples, seed=seed, return_stderr=True)
-    res = relighter.render(cam, [mat], RenderParams(microbuffer=m))
+    res = relighter.render(cam, [mat], RenderParams(mode="classic", microbuffer=m))
     assert res.stats.completed
     got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
     return got, ref, err
@@ -60,7 +60,7 @@ def test_glossy_metal_matches_reference(room):
     gb = S.reference_gbuffer(r, cam, mat)
     ref, err = reference_render(gb, cloud.positions, cloud.normals, cloud.colors,
                                 n_samples=1024, sampling="mixture", return_stderr=True)
-    res = r.render(cam, [mat], RenderParams(microbuffer=24))
+    res = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=24))
     got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
     assert np.all(np.abs(got.mean(0) / ref.mean(0) - 1) < 0.08), got.mean(0) / ref.mean(0)
     assert np.all(np.abs(got - ref) <= 0.2 * ref + 4 * err + 1e-3)
@@ -104,7 +104,7 @@ def test_light_straddling_the_horizon_does_not_leak():
     assert 1.0 - ref_dark.mean() / ref.mean() > 0.6           # the light dominates
     ratios = {}
     for m in (16, 24, 32):
-        res = r.render(cam, [mat], RenderParams(microbuffer=m))
+        res = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=m))
         assert res.stats.completed
         got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
         ratios[m] = got.mean() / ref.mean()

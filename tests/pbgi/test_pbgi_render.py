@@ -84,10 +84,10 @@ def test_no_nan_or_inf_at_extreme_parameters_and_grazing_views(mode):
 def test_tiles_assemble_into_the_full_image(furnace):
     mat = S.diffuse(0.6)
     cam = replace(FURNACE_CAM, width=20, height=16)
-    full = furnace.render(cam, [mat], RenderParams(microbuffer=8)).image
+    full = furnace.render(cam, [mat], RenderParams(mode="classic", microbuffer=8)).image
     tiled = np.zeros_like(full)
     for x0, y0, w, h in ((0, 0, 12, 7), (12, 0, 8, 7), (0, 7, 12, 9), (12, 7, 8, 9)):
-        tiled[y0:y0 + h, x0:x0 + w] = furnace.render(cam, [mat], RenderParams(microbuffer=8),
+        tiled[y0:y0 + h, x0:x0 + w] = furnace.render(cam, [mat], RenderParams(mode="classic", microbuffer=8),
                                                      tile=(x0, y0, w, h)).image
     assert np.array_equal(full[..., 3], tiled[..., 3])
     assert np.allclose(full, tiled, rtol=1e-3, atol=1e-5)
@@ -95,8 +95,8 @@ def test_tiles_assemble_into_the_full_image(furnace):
 
 def test_memory_budget_splits_batches_without_changing_the_image(furnace):
     mat = S.diffuse(0.6)
-    one = furnace.render(FURNACE_CAM, [mat], RenderParams(microbuffer=16))
-    small = furnace.render(FURNACE_CAM, [mat], RenderParams(microbuffer=16, memory_budget_mb=0.1))
+    one = furnace.render(FURNACE_CAM, [mat], RenderParams(mode="classic", microbuffer=16))
+    small = furnace.render(FURNACE_CAM, [mat], RenderParams(mode="classic", microbuffer=16, memory_budget_mb=0.1))
     assert one.stats.batches == 1 and small.stats.batches >= 4
     assert small.stats.mb < one.stats.mb
     assert np.array_equal(one.image, small.image)
@@ -106,15 +106,15 @@ def test_material_edit_reuses_microbuffers(furnace):
     """A material change re-runs only the G-buffer and the gather, and gives exactly what a
     fresh render gives."""
     a, b = S.diffuse(0.3), Material(base_color=(0.8, 0.2, 0.1), roughness=0.2, metallic=1.0)
-    furnace.render(FURNACE_CAM, [a], RenderParams(microbuffer=16))
-    edited = furnace.render(FURNACE_CAM, [b], RenderParams(microbuffer=16))
+    furnace.render(FURNACE_CAM, [a], RenderParams(mode="classic", microbuffer=16))
+    edited = furnace.render(FURNACE_CAM, [b], RenderParams(mode="classic", microbuffer=16))
     assert edited.stats.reused_microbuffers
     furnace.forget_microbuffers()
-    fresh = furnace.render(FURNACE_CAM, [b], RenderParams(microbuffer=16))
+    fresh = furnace.render(FURNACE_CAM, [b], RenderParams(mode="classic", microbuffer=16))
     assert not fresh.stats.reused_microbuffers
     assert np.array_equal(edited.image, fresh.image)
     moved = furnace.render(replace(FURNACE_CAM, position=FURNACE_CAM.position + 0.01), [b],
-                           RenderParams(microbuffer=16))
+                           RenderParams(mode="classic", microbuffer=16))
     assert not moved.stats.reused_microbuffers
 
 
@@ -127,16 +127,16 @@ def test_new_colours_recolour_the_same_tree():
     mat = S.diffuse(0.5)
     r.set_asset(S.sphere((0.0, 0.8, 0.0), 0.3, subdivisions=3))
     cam = S.look((0.3, 1.0, 0.9), (0.0, 0.8, 0.0), 10, 40)
-    before = r.render(cam, [mat], RenderParams(microbuffer=8)).image
+    before = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=8)).image
     r.set_cloud(PointCloud(cloud.positions, cloud.normals, cloud.colors * 3.0, hdr=True))
     assert len(r.hierarchy.nodes) == len(h.nodes)                     # same tree, not rebuilt
-    after = r.render(cam, [mat], RenderParams(microbuffer=8)).image
+    after = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=8)).image
     assert np.allclose(after[..., :3], 3.0 * before[..., :3], rtol=1e-4, atol=1e-6)
 
 
 def test_bad_parameters_are_one_line_errors(furnace):
     for params in (RenderParams(mode="bogus"),
-                   RenderParams(microbuffer=7), RenderParams(microbuffer=33),
+                   RenderParams(mode="classic", microbuffer=7), RenderParams(mode="classic", microbuffer=33),
                    RenderParams(memory_budget_mb=0)):
         with pytest.raises(ScanlightError) as err:
             furnace.render(FURNACE_CAM, None, params)
@@ -146,7 +146,7 @@ def test_bad_parameters_are_one_line_errors(furnace):
 
 
 def test_stats_contract(furnace):
-    res = furnace.render(FURNACE_CAM, None, RenderParams(microbuffer=12))
+    res = furnace.render(FURNACE_CAM, None, RenderParams(mode="classic", microbuffer=12))
     s = res.stats
     for key in ("mode", "ms", "mb", "nodes_visited", "microbuffer", "width", "height", "completed"):
         assert key in s.to_dict()
@@ -167,10 +167,10 @@ def test_asset_before_cloud_and_empty_views():
     b.set_asset(mesh)
     b.set_cloud(cloud)
     cam = S.look((0.3, 0.3, 1.5), (0.3, 0.1, 0.0), 12, 45)
-    ia = a.render(cam, None, RenderParams(microbuffer=8)).image
-    ib = b.render(cam, None, RenderParams(microbuffer=8)).image
+    ia = a.render(cam, None, RenderParams(mode="classic", microbuffer=8)).image
+    ib = b.render(cam, None, RenderParams(mode="classic", microbuffer=8)).image
     assert (ia[..., 3] > 0).sum() > 30 and np.array_equal(ia, ib)
     away = S.look((0.3, 0.3, 1.5), (0.3, 0.3, 3.0), 12, 45)
-    res = a.render(away, None, RenderParams(microbuffer=8))
+    res = a.render(away, None, RenderParams(mode="classic", microbuffer=8))
     assert res.stats.receivers == 0 and res.stats.completed
     assert not res.image.any()

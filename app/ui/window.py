@@ -277,7 +277,8 @@ class ViewerWindow:
     # -- screenshots -----------------------------------------------------------------------------
     def request_screenshot(self, path: str | None = None) -> None:
         """Saved once the refinement has finished (the window keeps running meanwhile)."""
-        self.pending_screenshot = path or time.strftime("scanlight-%Y%m%d-%H%M%S.png")
+        self.pending_screenshot = path or str(Path.cwd() /
+                                              time.strftime("scanlight-%Y%m%d-%H%M%S.png"))
 
     def read_window(self) -> np.ndarray:
         """The window's current framebuffer (panels included), (H, W, 3) uint8, top row first."""

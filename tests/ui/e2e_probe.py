@@ -83,6 +83,7 @@ def _snapshot(viewer):
         "intervals": state["intervals"][-400:],
         "done": state["done"],
         "dialog": bool(viewer.dialog.request is not None),
+        "typing": bool(imgui.get_io().want_text_input),    # a text field has the keyboard
     }
     return out
 

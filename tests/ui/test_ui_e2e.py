@@ -75,11 +75,19 @@ def _type_into(v, label: str, text: str) -> None:
     v.show(label)
     x, y = v.centre(label)
     v.x.click(x, y, mods=("ctrl",))
-    v.frames(3)
-    v.x.key("a", mods=("ctrl",))
-    v.x.type_text(text)
+    v.wait(lambda s: s["typing"], 20, f"{label} to take the keyboard")
+    _type(v, text)
     v.x.key("enter")
     v.frames(3)
+
+
+def _type(v, text: str) -> None:
+    """Select all, then one key per frame or two (a loaded machine still sees each)."""
+    v.x.key("a", mods=("ctrl",))
+    v.frames(2)
+    for ch in text:
+        v.x.type_text(ch)
+        v.frames(2)
 
 
 @pytest.fixture(scope="module")
@@ -182,9 +190,8 @@ def workflow(tmp_path_factory):
         v.wait(lambda s: s["dialog"], 20, "the save dialog")
         v.frames(3)
         v.x.click(*v.centre("file name"))
-        v.x.key("a", mods=("ctrl",))
-        v.x.type_text("look.json")
-        v.frames(2)
+        v.wait(lambda s: s["typing"], 20, "the file name field to take the keyboard")
+        _type(v, "look.json")
         v.click("Save")
         v.wait(lambda s: not s["dialog"] and (work / "look.json").is_file(), 30, "the save")
         res["saved"] = json.loads((work / "look.json").read_text())

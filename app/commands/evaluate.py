@@ -47,9 +47,12 @@ def run_expansion(args) -> int:
     LDR baseline with --ldr) and the relit-render error, printed and optionally as JSON."""
     from app.hdr.evaluate import expansion_errors, render_errors
     from app.io.files import write_json
+    from app.io.outputs import check_outputs
     from app.io.pointcloud import load_cloud
 
     values = param_values(args, "evaluate")
+    check_outputs({"--cloud": args.cloud, "--gt": args.gt, "--ldr": args.ldr,
+                   "--object": getattr(args, "object", None)}, {"--json": args.json})
     tl, alpha = values["hdr.threshold_ldr"], values["hdr.alpha"]
     cloud = load_cloud(args.cloud)
     gt = load_cloud(args.gt)

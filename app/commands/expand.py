@@ -91,12 +91,15 @@ class _StderrProgress:
 def run(args) -> int:
     from app.hdr.job import ExpandRequest, load_cameras, run_expand_request
     from app.io.files import require_file
+    from app.io.outputs import check_outputs
     from app.jobs import Job, JobState
 
     params = expand_params(args)
     out = Path(args.out)
     if out.suffix.lower() != ".ply":
         raise UsageError(None, f"--out must be a .ply file, got {out}")
+    check_outputs({"--cloud": args.cloud, "--photo": args.photo, "--cameras": args.cameras},
+                  {"--out": args.out, "--report": args.report})
     # check the inputs here, so bad input fails before a worker starts
     require_file(args.cloud, "point cloud")
     require_file(args.photo, "photo")

@@ -61,11 +61,15 @@ def run(args) -> int:
     from app.io.exr import write_exr
     from app.io.files import write_json
     from app.io.formats import load_object, placed_mesh
+    from app.io.outputs import check_outputs
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
 
     values = _check_args(args)
+    check_outputs({"--cloud": args.cloud, "--object": args.object, "--material": args.material,
+                   "--camera": args.camera},
+                  {"--out": args.out, "--png": args.png, "--stats": args.stats})
     exposure = values["view.exposure"]
     camera = load_camera(args.camera)
     if args.size:

@@ -89,16 +89,24 @@ def parse_size(text, minimum: int = 1) -> tuple[int, int]:
     return w, h
 
 
+MAX_PIXELS = 8192 * 8192   # a camera's image: 64 Mpixel (a float RGBA image of it is 1 GiB)
+MAX_COORD = 1e9            # metres: beyond this a position is a typo, and squares overflow
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _vec3(d: dict, key: str, source, default=None) -> np.ndarray:
     val = d.get(key, default)
     if val is None:
         raise ScanlightError(source, f"camera is missing {key!r}")
-    try:
-        arr = np.asarray(val, dtype=np.float64)
-    except (TypeError, ValueError):
-        arr = np.zeros(0)
-    if arr.shape != (3,) or not np.isfinite(arr).all():
-        raise ScanlightError(source, f"camera {key!r} must be 3 finite numbers, got {val!r}")
+    if not (isinstance(val, (list, tuple)) and len(val) == 3 and all(_number(v) for v in val)):
+        raise ScanlightError(source, f"camera {key!r} must be 3 numbers, got {val!r}")
+    arr = np.asarray(val, dtype=np.float64)
+    if not np.isfinite(arr).all() or np.abs(arr).max() > MAX_COORD:
+        raise ScanlightError(source, f"camera {key!r} must be 3 finite numbers within "
+                                     f"{MAX_COORD:g} m of the origin, got {val!r}")
     return arr
 
 
@@ -110,12 +118,19 @@ def camera_from_dict(d: dict, source=None) -> Camera:
     if np.linalg.norm(at - pos) < 1e-9:
         raise ScanlightError(source, "camera 'look_at' equals 'position'")
     fov = d.get("fov_y_deg", 45.0)
-    if not isinstance(fov, (int, float)) or not 0.1 <= fov <= 179:
-        raise ScanlightError(source, f"camera 'fov_y_deg' must be in [0.1, 179], got {fov!r}")
+    if not _number(fov) or not 0.1 <= fov <= 179:
+        raise ScanlightError(source, f"camera 'fov_y_deg' must be a number in [0.1, 179], "
+                                     f"got {fov!r}")
     w, h = d.get("width", 128), d.get("height", 128)
     for key, v in (("width", w), ("height", h)):
-        if not isinstance(v, int) or not 1 <= v <= 16384:
+        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 16384:
             raise ScanlightError(source, f"camera {key!r} must be an integer in [1, 16384], got {v!r}")
+    if w * h > MAX_PIXELS:
+        raise ScanlightError(source, f"camera image {w}x{h} is larger than the limit of "
+                                     f"{MAX_PIXELS:,} pixels (8192x8192)")
+    up_dir = np.cross(at - pos, up)
+    if np.linalg.norm(up_dir) < 1e-12 * np.linalg.norm(at - pos) * np.linalg.norm(up):
+        raise ScanlightError(source, "camera 'up' is parallel to the viewing direction")
     return Camera(pos, at, up, float(fov), w, h)
 
 

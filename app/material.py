@@ -91,12 +91,16 @@ PRESETS: dict[str, dict] = {
 }
 
 
+def _is_number(v) -> bool:
+    """A JSON number: not a string ("123" is not 123) and not a boolean (true is not 1)."""
+    return isinstance(v, (int, float, np.number)) and not isinstance(v, (bool, np.bool_))
+
+
 def set_param(mat: Material, key: str, val, source: str | None = None) -> None:
     if key == "base_color":
-        try:
-            rgb = [float(v) for v in val]
-        except TypeError:
-            rgb = []
+        ok = (isinstance(val, (list, tuple, np.ndarray)) and len(val) == 3
+              and all(_is_number(v) for v in val))
+        rgb = [float(v) for v in val] if ok else []
         if len(rgb) != 3 or not all(np.isfinite(rgb)):
             raise ScanlightError(source, f"material 'base_color' must be 3 finite numbers, got {val!r}")
         mat.base_color = tuple(float(np.clip(v, 0.0, 1.0)) for v in rgb)
@@ -105,10 +109,9 @@ def set_param(mat: Material, key: str, val, source: str | None = None) -> None:
     if spec is None:
         raise ScanlightError(source, f"unknown material parameter {key!r} "
                                      f"(known: {', '.join(ALL_NAMES)})")
-    try:
-        v = float(val)
-    except (TypeError, ValueError):
-        raise ScanlightError(source, f"material {key!r} must be a number, got {val!r}") from None
+    if not _is_number(val):
+        raise ScanlightError(source, f"material {key!r} must be a number, got {val!r}")
+    v = float(val)
     if not np.isfinite(v):
         raise ScanlightError(source, f"material {key!r} must be finite, got {val!r}")
     setattr(mat, key, float(np.clip(v, spec.lo, spec.hi)))

@@ -84,6 +84,10 @@ def _rms(a: np.ndarray, b: np.ndarray) -> float:
 def expansion_errors(cloud: PointCloud, gt: PointCloud, ldr: PointCloud | None = None,
                      tl: float = 0.9, exposure: float | None = None, source=None) -> dict:
     """Point RMS overall and on the overexposed points (those an LDR scan clipped)."""
+    if not np.any(luminance(gt.colors) > 0):
+        raise ScanlightError(gt.source or source, "the ground truth is all black: there is no "
+                                                  "light to compare with (relative errors are "
+                                                  "undefined)")
     idx, how, far = correspondence(cloud, gt, source)
     g = gt.colors[idx].astype(np.float64)
     ldr_cols = None

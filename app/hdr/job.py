@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.camera import camera_from_dict
+from app.camera import MAX_COORD, camera_from_dict
 from app.errors import ScanlightError
 from app.hdr.pipeline import ExpandParams, Expansion, run_expansion
 from app.io.files import read_json, require_file, write_json
@@ -41,12 +41,12 @@ def load_cameras(path) -> list:
             out.append(camera_from_dict(d, f"{p} (camera {i})"))
             continue
         pos = d.get("position")
-        try:
-            arr = np.asarray(pos, dtype=np.float64)
-        except (TypeError, ValueError):
-            arr = np.zeros(0)
-        if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-            raise ScanlightError(p, f"camera {i}: 'position' must be 3 finite numbers, got {pos!r}")
+        numbers = (isinstance(pos, (list, tuple)) and len(pos) == 3 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in pos))
+        arr = np.asarray(pos, dtype=np.float64) if numbers else np.zeros(0)
+        if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.abs(arr).max() > MAX_COORD:
+            raise ScanlightError(p, f"camera {i}: 'position' must be 3 finite numbers within "
+                                    f"{MAX_COORD:g} m of the origin, got {pos!r}")
         out.append(arr)
     return out
 

@@ -64,6 +64,10 @@ def read_json(path, kind: str):
         return json.loads(p.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ScanlightError(p, f"not valid JSON ({exc})") from None
+    except RecursionError:
+        raise ScanlightError(p, "JSON nested too deeply to be a Scanlight file") from None
+    except PermissionError:
+        raise ScanlightError(p, "cannot read the file (permission denied)") from None
 
 
 def jsonable(obj):

@@ -36,6 +36,8 @@ _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "M
 _TRIANGLES, _STRIP, _FAN = 4, 5, 6
 _DRACO = "KHR_draco_mesh_compression"
 _MAX_DEPTH = 64  # node hierarchy depth; deeper means a cycle
+MAX_INSTANCES = 100_000  # node instances a scene may expand to (a node shared by two parents
+#                          is drawn twice; forty levels of that would be 2^40 copies)
 
 
 @dataclass
@@ -291,6 +293,7 @@ class _Reader:
         else:  # no scene: every node that is nobody's child
             children = {c for n in nodes for c in n.get("children", [])}
             roots = [i for i in range(len(nodes)) if i not in children]
+        self._check_instances(nodes, roots)
         stack = [(r, np.eye(4), 0) for r in roots]
         while stack:
             ni, parent, depth = stack.pop()
@@ -307,6 +310,49 @@ class _Reader:
                     out = self._primitive(prim, world, f"mesh {node['mesh']} primitive {k}")
                     if out is not None:
                         yield out, prim.get("material")
+
+    def _check_instances(self, nodes, roots) -> None:
+        """Count the node instances the scene expands to, before expanding it: each node's
+        count once, from its children's (memoised, so a shared subtree costs one visit), with
+        cycles and dangling indices refused. A tree (what the glTF spec requires) has one
+        instance per node; a file whose nodes share children could otherwise take forever."""
+        count: dict[int, int] = {}
+        state: dict[int, int] = {}          # 1 = being counted (on the current path), 2 = done
+
+        def children(i):
+            try:
+                kids = nodes[i].get("children", [])
+            except (IndexError, TypeError, AttributeError):
+                raise ScanlightError(self.path, f"corrupt glTF: node {i} does not exist") from None
+            if not isinstance(kids, list) or not all(isinstance(c, int) and not isinstance(
+                    c, bool) for c in kids):
+                raise ScanlightError(self.path, f"corrupt glTF: node {i} children must be a "
+                                                "list of node indices")
+            return kids
+
+        for root in roots:
+            stack = [(root, iter(children(root)))]
+            state[root] = 1
+            while stack:
+                node, it = stack[-1]
+                nxt = next(it, None)
+                if nxt is None:
+                    stack.pop()
+                    state[node] = 2
+                    count[node] = 1 + sum(count[c] for c in children(node))
+                    if count[node] > MAX_INSTANCES:
+                        raise ScanlightError(self.path, f"the node graph expands to more than "
+                                                        f"{MAX_INSTANCES:,} instances (nodes "
+                                                        "shared by several parents)")
+                elif state.get(nxt) == 1:
+                    raise ScanlightError(self.path, "corrupt glTF: node hierarchy has a cycle")
+                elif state.get(nxt) != 2:
+                    state[nxt] = 1
+                    stack.append((nxt, iter(children(nxt))))
+        total = sum(count.get(r, 0) for r in roots)
+        if total > MAX_INSTANCES:
+            raise ScanlightError(self.path, f"the scene expands to {total:,} node instances "
+                                            f"(limit {MAX_INSTANCES:,})")
 
     def _primitive(self, prim: dict, world: np.ndarray, label: str) -> Primitive | None:
         mode = prim.get("mode", _TRIANGLES)

@@ -251,6 +251,10 @@ def load_mesh(path, normalize: bool = False) -> Mesh:
         pos, idx, nrm, uvs, mids, materials = _obj_arrays(p, warn)
     if len(idx) == 0:
         raise ScanlightError(p, "mesh has no faces")
+    twice_area = np.linalg.norm(face_normals(pos, idx), axis=1)
+    if not np.any(np.isfinite(twice_area) & (twice_area > 0)):
+        raise ScanlightError(p, f"mesh has no triangle with an area (all {len(idx):,} faces are "
+                                "degenerate): nothing to render")
     if uvs is None:
         warn("no texture coordinates: tangents use an arbitrary frame (anisotropy direction "
              "undefined)")
@@ -315,10 +319,22 @@ def _gltf_arrays(p: Path, warn):
     return pos, idx, nrm, uvs, mids, materials
 
 
+def _check_obj_indices(p: Path, data: bytes) -> None:
+    """OBJ indices are 1-based (negative: from the end); 0 is no vertex. trimesh would read it
+    as the last vertex and the asset would render silently wrong."""
+    for n, line in enumerate(data.splitlines(), 1):
+        if line[:2] not in (b"f ", b"f\t"):
+            continue
+        for word in line.split()[1:]:
+            if word.split(b"/")[0] in (b"0", b"-0", b"+0"):
+                raise ScanlightError(p, f"line {n}: face index 0 (OBJ indices start at 1)")
+
+
 def _obj_arrays(p: Path, warn):
     import trimesh
 
     data = p.read_bytes()
+    _check_obj_indices(p, data)
     library = _read_mtl_libraries(p, data, warn)
     try:
         scene = trimesh.load_scene(str(p), file_type="obj", process=False, group_material=True)

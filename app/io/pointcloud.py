@@ -81,7 +81,10 @@ def _ply_header(f, p: Path):
             if key == "format":
                 fmt = words[1]
             elif key == "element":
-                elements.append((words[1], int(words[2]), []))
+                count = int(words[2])
+                if count < 0:
+                    raise ValueError("a negative element count")
+                elements.append((words[1], count, []))
             elif key == "property":
                 if not elements:
                     raise ValueError("property before any element")
@@ -90,12 +93,22 @@ def _ply_header(f, p: Path):
                 else:
                     if words[1] not in _PLY_TYPES:
                         raise ValueError(f"unknown property type {words[1]!r}")
+                    if any(pr[0] == words[2] for pr in elements[-1][2]):
+                        raise ValueError(f"property {words[2]!r} declared twice")
                     elements[-1][2].append((words[2], words[1]))
         except (IndexError, ValueError) as exc:
             raise ScanlightError(p, f"corrupt PLY header line {raw.strip()[:60]!r} "
                                     f"({exc})") from None
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise ScanlightError(p, f"corrupt PLY: unknown format {fmt!r}")
+    # Counts against the file size before anything is read or allocated: every row takes at
+    # least one byte (an ASCII line, or a binary property), so a header claiming more rows than
+    # the file has bytes is a lie (it used to loop for ever over a 300-byte file).
+    body = p.stat().st_size - f.tell()
+    rows = sum(count for _, count, _ in elements)
+    if rows > body:
+        raise ScanlightError(p, f"corrupt PLY: the header declares {rows:,} rows but only "
+                                f"{max(body, 0):,} bytes follow it")
     return fmt, elements
 
 

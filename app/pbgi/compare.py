@@ -65,6 +65,7 @@ def relit_errors(clouds: dict[str, PointCloud], gt: PointCloud, mesh, camera: Ca
         box = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1)) if mask.any() else (slice(0), slice(0))
         a = luminance(np.clip(tonemap(img[..., :3]), 0, 1))[box]
         b = luminance(ref_y)[box]
-        out[name] = {"render_rms": rms, "render_rel_rms": rms / max(mean_ref, 1e-12),
+        rel = rms / mean_ref if mean_ref > 1e-9 else None     # undefined without light
+        out[name] = {"render_rms": rms, "render_rel_rms": rel,
                      "render_ssim": ssim(a, b) if a.size else float("nan")}
     return out, images

@@ -82,6 +82,7 @@ class OffscreenViewer:
                                  self.engine)
         if said:
             self.engine.error(said, "info")
+        self.fail_on_errors()        # a missing or corrupt file: exit 3 before any frame
         self.script = script
         self.script_args = list(script_args)
         self.frame_index = 0
@@ -89,6 +90,14 @@ class OffscreenViewer:
 
     def quit(self) -> None:
         self.quit_requested = True
+
+    def fail_on_errors(self) -> None:
+        """Offscreen runs are batch jobs: an error the window would show as a message (a file
+        that did not load, a failed render) fails the run with that line instead (exit 3), so
+        no screenshot of a half-loaded scene is ever passed off as a result."""
+        errors = [m.text for m in self.engine.messages if m.level == "error"]
+        if errors:
+            raise ScanlightError(None, errors[0])
 
     def read_window(self):
         return self.engine.view.read_display()
@@ -104,6 +113,7 @@ class OffscreenViewer:
             if self.script is not None:
                 self.script(self, self.frame_index)
             self.frame_index += 1
+        self.fail_on_errors()
         if screenshot:
             files = self.engine.screenshot(screenshot)
             print("screenshot: " + ", ".join(files))
@@ -123,6 +133,9 @@ def run_viewer(args) -> int:
     if frames < 0:
         raise UsageError(None, f"--frames must be >= 0, got {frames}")
     shot = getattr(args, "screenshot", None)
+    if shot and Path(shot).suffix.lower() != ".png":
+        raise UsageError(None, f"--screenshot must name a .png file (an .exr of the linear "
+                               f"image is written beside it), got {shot!r}")
     if getattr(args, "offscreen", False):
         return OffscreenViewer(session, size, script, relighter=Relighter,
                                script_args=script_args).run(frames, shot)

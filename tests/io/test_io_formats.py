@@ -122,7 +122,7 @@ def test_missing_and_empty_object_file(tmp_path):
 
 def test_degenerate_mesh_is_an_error(tmp_path):
     (tmp_path / "flat.obj").write_text("v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n")
-    with pytest.raises(ScanlightError, match=r"flat\.obj: mesh has zero size"):
+    with pytest.raises(ScanlightError, match=r"flat\.obj: mesh has no triangle with an area"):
         placed_mesh(ObjectSpec(str(tmp_path / "flat.obj")))
 
 

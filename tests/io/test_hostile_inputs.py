@@ -1,0 +1,300 @@
+"""Hostile and careless inputs (issue #15): each is refused with one ScanlightError line naming
+the file - fast, before any large allocation - and the file is left unchanged.
+
+Named cases first (the ones found by hand), then generated ones (Hypothesis, derandomized so CI
+is deterministic): PLY headers whose counts, types and properties are wrong, and the JSON
+schemas of cameras, capture cameras and materials with wrong types."""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import json
+import struct
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from app.errors import ScanlightError
+
+FUZZ = settings(max_examples=25, deadline=None, derandomize=True,
+                suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+def _refused(path: Path, load, *words) -> str:
+    """``load(path)`` raises one ScanlightError line naming the file, fast; the file is unchanged."""
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    t0 = time.perf_counter()
+    with pytest.raises(ScanlightError) as err:
+        load(path)
+    assert time.perf_counter() - t0 < 10, "took too long to refuse"
+    text = str(err.value)
+    assert "\n" not in text and str(path) in text, text
+    assert all(w in text for w in words), text
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+    return text
+
+
+def _load_cloud(p):
+    from app.io.pointcloud import load_cloud
+    return load_cloud(p)
+
+
+def _load_mesh(p):
+    from app.io.mesh import load_mesh
+    return load_mesh(p)
+
+
+def _load_camera(p):
+    from app.camera import load_camera
+    return load_camera(p)
+
+
+def _load_material(p):
+    from app.material import load_material
+    return load_material(p)
+
+
+def _load_cameras(p):
+    from app.hdr.job import load_cameras
+    return load_cameras(p)
+
+
+# -- named cases -------------------------------------------------------------------------------
+PLY_HEAD = "ply\nformat ascii 1.0\n"
+XYZ = "property float x\nproperty float y\nproperty float z\n"
+PLY_CASES = {
+    "a face element claiming 10^12 rows": (
+        PLY_HEAD + "element face 1000000000000\nproperty list uchar int vertex_indices\n"
+        "element vertex 1\n" + XYZ + "end_header\n0 0 0\n", "rows"),
+    "element vertex -5": (PLY_HEAD + "element vertex -5\n" + XYZ + "end_header\n0 0 0\n",
+                          "negative"),
+    "a duplicated property": (PLY_HEAD + "element vertex 1\n" + XYZ + "property float x\n"
+                              "end_header\n0 0 0 0\n", "twice"),
+    "binary counts beyond the data": ("ply\nformat binary_little_endian 1.0\nelement vertex "
+                                      "99999999\n" + XYZ + "end_header\n", "rows"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(PLY_CASES))
+def test_lying_ply_headers(case, tmp_path):
+    text, word = PLY_CASES[case]
+    p = tmp_path / "bad.ply"
+    p.write_bytes(text.encode())
+    _refused(p, _load_cloud, word)
+
+
+def _gltf(nodes) -> dict:
+    pos = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0)
+    uri = "data:application/octet-stream;base64," + base64.b64encode(pos).decode()
+    return {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": nodes,
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                           "min": [0, 0, 0], "max": [1, 1, 0]}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "buffers": [{"byteLength": 36, "uri": uri}]}
+
+
+def test_gltf_node_graph_of_two_to_the_forty_paths_is_refused_at_once(tmp_path):
+    p = tmp_path / "dag.gltf"
+    p.write_text(json.dumps(_gltf([{"children": [i + 1, i + 1]} for i in range(40)]
+                                  + [{"mesh": 0}])))
+    _refused(p, _load_mesh, "instances")
+
+
+def test_gltf_cycle_is_refused(tmp_path):
+    p = tmp_path / "cycle.gltf"
+    p.write_text(json.dumps(_gltf([{"children": [1]}, {"children": [0], "mesh": 0}])))
+    _refused(p, _load_mesh, "cycle")
+
+
+def test_gltf_shared_child_is_instanced(tmp_path):
+    """A node under two parents (not a tree, but harmless) is drawn twice, not refused."""
+    from app.io.mesh import load_mesh
+    p = tmp_path / "shared.gltf"
+    p.write_text(json.dumps(_gltf([{"children": [1, 1]}, {"mesh": 0}])))
+    assert load_mesh(p).n_faces == 2
+
+
+@pytest.mark.parametrize("text,word", [("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "index 0"),
+                                       ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "area")])
+def test_obj_silently_wrong_meshes(text, word, tmp_path):
+    p = tmp_path / "bad.obj"
+    p.write_text(text)
+    _refused(p, _load_mesh, word)
+
+
+CAM = {"position": [0.3, 1.0, 0.9], "look_at": [0, 0.8, 0], "fov_y_deg": 40, "width": 8,
+       "height": 6}
+CAMERA_CASES = {
+    "width true": ({"width": True}, "width"),
+    "width as a string": ({"width": "64"}, "width"),
+    "16384 x 16384": ({"width": 16384, "height": 16384}, "limit"),
+    "a camera at 1e308": ({"position": [1e308, 0, 0]}, "position"),
+    "position as strings": ({"position": ["1", "2", "3"]}, "position"),
+    "fov false": ({"fov_y_deg": False}, "fov_y_deg"),
+    "up along the view": ({"up": [-0.3, -0.2, -0.9]}, "up"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CAMERA_CASES))
+def test_camera_json_types_not_just_ranges(case, tmp_path):
+    change, word = CAMERA_CASES[case]
+    p = tmp_path / "cam.json"
+    p.write_text(json.dumps({**CAM, **change}))
+    _refused(p, _load_camera, word)
+
+
+@pytest.mark.parametrize("values,word", [({"base_color": "123"}, "base_color"),
+                                         ({"roughness": True}, "roughness"),
+                                         ({"roughness": "0.5"}, "roughness"),
+                                         ({"metallic": None}, "metallic")])
+def test_material_json_types(values, word, tmp_path):
+    p = tmp_path / "mat.json"
+    p.write_text(json.dumps(values))
+    _refused(p, _load_material, word)
+
+
+def test_capture_cameras_far_away_or_as_strings(tmp_path):
+    p = tmp_path / "cams.json"
+    p.write_text(json.dumps([{"position": [0, 1e300, 0]}]))
+    _refused(p, _load_cameras, "position")
+    p.write_text(json.dumps([{"position": ["0", "1", "0"]}]))
+    _refused(p, _load_cameras, "position")
+
+
+def test_deeply_nested_json(tmp_path):
+    p = tmp_path / "deep.json"
+    p.write_text("[" * 100_000 + "]" * 100_000)
+    _refused(p, _load_camera, "nested")
+
+
+def test_all_black_ground_truth_is_refused_not_scored(tmp_path):
+    from app.cloud import PointCloud
+    from app.hdr.evaluate import expansion_errors
+    pts = np.random.default_rng(0).uniform(-1, 1, (200, 3))
+    nrm = np.tile([0.0, 1.0, 0.0], (200, 1))
+    gt = PointCloud(pts, nrm, np.zeros((200, 3), np.float32), hdr=True, source="gt.ply")
+    cloud = PointCloud(pts, nrm, np.ones((200, 3), np.float32), hdr=True)
+    with pytest.raises(ScanlightError, match="all black"):
+        expansion_errors(cloud, gt)
+
+
+# -- generated cases ---------------------------------------------------------------------------
+PLY_TYPES = ("char", "uchar", "short", "ushort", "int", "uint", "float", "double")
+
+
+@FUZZ
+@given(count=st.one_of(st.integers(-10**15, -1), st.integers(10**4, 10**15)),
+       fmt=st.sampled_from(("ascii", "binary_little_endian", "binary_big_endian")),
+       types=st.lists(st.sampled_from(PLY_TYPES), min_size=3, max_size=3),
+       rows=st.integers(0, 3))
+def test_generated_ply_headers_with_impossible_counts(count, fmt, types, rows, tmp_path):
+    """Counts that are negative or larger than the bytes that follow, any format and type."""
+    head = (f"ply\nformat {fmt} 1.0\nelement vertex {count}\n"
+            + "".join(f"property {t} {n}\n" for t, n in zip(types, "xyz")) + "end_header\n")
+    body = ("0 0 0\n" * rows).encode() if fmt == "ascii" else b"\0" * (12 * rows)
+    p = tmp_path / "gen.ply"
+    p.write_bytes(head.encode() + body)
+    _refused(p, _load_cloud)
+
+
+@FUZZ
+@given(name=st.sampled_from(("x", "y", "z", "red", "nx")),
+       bad=st.sampled_from(("float16", "list uchar", "quad", "int128", "")))
+def test_generated_ply_headers_with_broken_properties(name, bad, tmp_path):
+    head = (f"ply\nformat ascii 1.0\nelement vertex 1\nproperty {bad} {name}\n" + XYZ
+            + "end_header\n0 0 0 0\n")
+    p = tmp_path / "gen.ply"
+    p.write_bytes(head.encode())
+    _refused(p, _load_cloud)
+
+
+NOT_A_NUMBER = st.one_of(st.booleans(), st.text(max_size=4), st.none(),
+                         st.lists(st.integers(), max_size=2), st.dictionaries(st.text(max_size=2),
+                                                                             st.integers(),
+                                                                             max_size=1))
+
+
+@FUZZ
+@given(key=st.sampled_from(("position", "look_at", "up", "fov_y_deg", "width", "height")),
+       value=NOT_A_NUMBER)
+def test_generated_camera_fields_of_the_wrong_type(key, value, tmp_path):
+    if key in ("position", "look_at", "up") and value is None and key == "up":
+        value = "up"       # a missing 'up' defaults to +y: give it a wrong value instead
+    p = tmp_path / "cam.json"
+    p.write_text(json.dumps({**CAM, key: value}))
+    _refused(p, _load_camera, key)
+
+
+@FUZZ
+@given(key=st.sampled_from(("base_color", "roughness", "metallic", "specular", "clearcoat",
+                            "sheen", "anisotropic")),
+       value=st.one_of(NOT_A_NUMBER, st.just("0.5"), st.just([0.5, "0.5", 0.5])))
+def test_generated_material_fields_of_the_wrong_type(key, value, tmp_path):
+    p = tmp_path / "mat.json"
+    p.write_text(json.dumps({key: value}))
+    _refused(p, _load_material, key)
+
+
+@FUZZ
+@given(value=st.one_of(NOT_A_NUMBER, st.lists(st.floats(allow_nan=False), min_size=3,
+                                               max_size=3).filter(
+    lambda v: max(abs(x) for x in v) > 1e9)))
+def test_generated_capture_positions(value, tmp_path):
+    p = tmp_path / "cams.json"
+    p.write_text(json.dumps([{"position": value}]))
+    _refused(p, _load_cameras)
+
+
+# -- the same files through the command line ----------------------------------------------------
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    from tests.support import scenes as S
+
+    from app.io.pointcloud import save_cloud
+    d = tmp_path_factory.mktemp("good")
+    save_cloud(S.box_room(0.1), d / "room.ply")
+    (d / "obj.json").write_text(json.dumps({"mesh": "sphere", "translate": [0, 0.8, 0],
+                                            "scale": 0.6}))
+    (d / "cam.json").write_text(json.dumps(CAM))
+    (d / "mat.json").write_text(json.dumps({"roughness": 0.5}))
+    return d
+
+
+CLI_CASES = {f"--cloud: {k}": ("--cloud", "bad.ply", v[0]) for k, v in PLY_CASES.items()}
+CLI_CASES.update({f"--camera: {k}": ("--camera", "bad.json", json.dumps({**CAM, **v[0]}))
+                  for k, v in CAMERA_CASES.items()})
+CLI_CASES["--material: base_color '123'"] = ("--material", "bad.json",
+                                             json.dumps({"base_color": "123"}))
+CLI_CASES["--object: a 2^40-path glTF"] = ("--object", "bad.gltf", json.dumps(
+    _gltf([{"children": [i + 1, i + 1]} for i in range(40)] + [{"mesh": 0}])))
+
+
+@pytest.mark.parametrize("case", sorted(CLI_CASES))
+def test_render_refuses_each_bad_file_in_one_line(case, good, tmp_path, capsys):
+    """Exit 3, one line naming the file, no output written, the bad file unchanged."""
+    from app.cli import main
+    flag, name, text = CLI_CASES[case]
+    bad = tmp_path / name
+    bad.write_text(text)
+    files = {"--cloud": good / "room.ply", "--object": good / "obj.json",
+             "--camera": good / "cam.json", "--material": good / "mat.json"}
+    if flag == "--object":
+        files["--object"] = tmp_path / "obj.json"
+        files["--object"].write_text(json.dumps({"mesh": str(bad)}))
+    else:
+        files[flag] = bad
+    before = hashlib.sha256(bad.read_bytes()).hexdigest()
+    argv = ["render", *[a for k, v in files.items() for a in (k, str(v))],
+            "--out", str(tmp_path / "out.exr"), "--stats", str(tmp_path / "out.json")]
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 3, err
+    assert len(err.splitlines()) == 1 and str(bad) in err, err
+    assert not (tmp_path / "out.exr").exists() and not (tmp_path / "out.json").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]
+    assert hashlib.sha256(bad.read_bytes()).hexdigest() == before

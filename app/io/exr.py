@@ -70,11 +70,28 @@ def _pick_rgb(channels: dict, path: Path) -> np.ndarray:
     return np.stack([np.asarray(p, dtype=np.float32) for p in planes], axis=-1)
 
 
+MAX_IMAGE_PIXELS = 150_000_000   # photos: a 150-Mpixel image is 1.8 GB as linear float RGB
+
+
+def _check_pixels(p: Path, width: int, height: int) -> None:
+    if width * height > MAX_IMAGE_PIXELS:
+        raise ScanlightError(p, f"image of {width}x{height} pixels is larger than the limit of "
+                                f"{MAX_IMAGE_PIXELS:,} pixels")
+
+
 def read_exr(path) -> LinearImage:
     """An OpenEXR image: half or float; RGB, RGBA -> RGB, Y -> grey; the first part only."""
     p = require_file(path, "EXR image", EXR_EXTENSIONS)
     import OpenEXR
 
+    try:   # the size first, from the header alone: nothing is allocated for a huge image
+        with OpenEXR.File(str(p), header_only=True) as f:
+            lo, hi = f.header()["dataWindow"]
+        _check_pixels(p, int(hi[0]) - int(lo[0]) + 1, int(hi[1]) - int(lo[1]) + 1)
+    except ScanlightError:
+        raise
+    except Exception as exc:  # OpenEXR raises RuntimeError/ValueError for corrupt files
+        raise ScanlightError(p, f"corrupt or truncated EXR ({exc})") from None
     try:
         with OpenEXR.File(str(p), separate_channels=True) as f:
             n_parts = len(f.parts)
@@ -128,12 +145,15 @@ def read_ldr(path) -> LinearImage:
 
     try:
         with Image.open(p) as im:
+            _check_pixels(p, *im.size)      # from the header, before decoding
             im.load()
             if im.mode.startswith("I;16") or im.mode == "I":
                 v = np.asarray(im, dtype=np.float32) / 65535.0
                 enc = np.repeat(np.clip(v, 0.0, 1.0)[..., None], 3, axis=-1)
             else:
                 enc = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+    except Image.DecompressionBombError as exc:
+        raise ScanlightError(p, f"image too large ({exc})") from None
     except (OSError, UnidentifiedImageError, SyntaxError, ValueError) as exc:
         raise ScanlightError(p, f"corrupt or truncated image ({exc})") from None
     return _finish(srgb_to_linear(enc), False, p, {})

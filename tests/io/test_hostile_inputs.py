@@ -298,3 +298,30 @@ def test_render_refuses_each_bad_file_in_one_line(case, good, tmp_path, capsys):
     assert not (tmp_path / "out.exr").exists() and not (tmp_path / "out.json").exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]
     assert hashlib.sha256(bad.read_bytes()).hexdigest() == before
+
+
+def _png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose IHDR claims width x height, with one empty IDAT: tiny on disk."""
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b""))
+            + chunk(b"IEND", b""))
+
+
+def test_decompression_bomb_png_is_refused_from_its_header(tmp_path):
+    from app.io.exr import read_image
+    p = tmp_path / "bomb.png"
+    p.write_bytes(_png_header_only(30000, 30000))
+    _refused(p, read_image, "too large")
+
+
+def test_exr_size_is_checked_from_the_header_first(tmp_path, monkeypatch):
+    from app.io import exr
+    p = tmp_path / "photo.exr"
+    exr.write_exr(p, np.ones((16, 16, 3), np.float32))
+    monkeypatch.setattr(exr, "MAX_IMAGE_PIXELS", 100)
+    _refused(p, exr.read_image, "16x16", "limit")

@@ -63,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"scanlight {command}: error: {err}", file=sys.stderr)
         return err.exit_code
     except KeyboardInterrupt:
-        print(f"scanlight {command}: interrupted", file=sys.stderr)
+        done = ("; nothing written" if command in ("render", "expand", "evaluate") else "")
+        print(f"scanlight {command}: interrupted{done}", file=sys.stderr)
         return 130
     except Exception as exc:  # a bug, not bad input: one line, traceback with -v
         if args.verbose:

@@ -91,7 +91,7 @@ class _StderrProgress:
 def run(args) -> int:
     from app.hdr.job import ExpandRequest, load_cameras, run_expand_request
     from app.io.files import require_file
-    from app.io.outputs import check_outputs
+    from app.io.outputs import OutputSet, check_outputs
     from app.jobs import Job, JobState
 
     params = expand_params(args)
@@ -104,31 +104,37 @@ def run(args) -> int:
     require_file(args.cloud, "point cloud")
     require_file(args.photo, "photo")
     load_cameras(args.cameras)
-    req = ExpandRequest(args.cloud, args.photo, args.cameras, params, str(out), args.report,
-                        return_cloud=False)
-    show = _StderrProgress()
-    job = Job(run_expand_request, req, args.worker)
-    job.start()
-    shown = 0
-    try:
-        while True:
-            st = job.wait(timeout=0.2)
-            for f, stage in job.history[shown:]:
-                show(f, stage)
-            shown = len(job.history)
-            if job.done:
-                break
-    except KeyboardInterrupt:
-        job.cancel()
-        job.wait(timeout=job.kill_after + 1)
-        raise
-    if st.state is JobState.FAILED:
-        if isinstance(job.error, ScanlightError):
-            raise job.error
-        raise RuntimeError(str(job.error))
-    if st.state is JobState.CANCELLED:
-        print("expand: cancelled; nothing written", file=sys.stderr)
-        return 130
+    # the cloud and the report are written to temporaries and renamed together at the end
+    # (app/io/outputs.py): a failure or Ctrl-C leaves neither, two runs never mix theirs
+    with OutputSet({"--out": out, "--report": args.report}) as outs:
+        req = ExpandRequest(args.cloud, args.photo, args.cameras, params,
+                            str(outs.temp("--out")),
+                            str(outs.temp("--report")) if args.report else None,
+                            return_cloud=False, output_name=str(out))
+        show = _StderrProgress()
+        job = Job(run_expand_request, req, args.worker)
+        job.start()
+        shown = 0
+        try:
+            while True:
+                st = job.wait(timeout=0.2)
+                for f, stage in job.history[shown:]:
+                    show(f, stage)
+                shown = len(job.history)
+                if job.done:
+                    break
+        except KeyboardInterrupt:
+            job.cancel()
+            job.wait(timeout=job.kill_after + 1)
+            raise
+        if st.state is JobState.FAILED:
+            if isinstance(job.error, ScanlightError):
+                raise job.error
+            raise RuntimeError(str(job.error))
+        if st.state is JobState.CANCELLED:
+            outs.discard()
+            print("expand: cancelled; nothing written", file=sys.stderr)
+            return 130
     rep = job.result.report
     for w in rep.get("warnings", []):
         print(f"expand: warning: {w}", file=sys.stderr)

@@ -61,7 +61,7 @@ def run(args) -> int:
     from app.io.exr import write_exr
     from app.io.files import write_json
     from app.io.formats import load_object, placed_mesh
-    from app.io.outputs import check_outputs
+    from app.io.outputs import OutputSet, check_outputs
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
@@ -99,11 +99,6 @@ def run(args) -> int:
         rgba[..., :3] = img[..., :3] * a + bg[..., :3] * (1.0 - a)
         rgba[..., 3] = np.maximum(img[..., 3], bg[..., 3])
 
-    write_exr(args.out, rgba[..., :3])
-    if args.png:
-        from app.io.images import write_png
-        from app.render.tonemap import tonemap_to_srgb8
-        write_png(args.png, tonemap_to_srgb8(rgba, exposure))
     stats = st.to_dict()                  # app.pbgi.stats.RenderStats, plus the run's inputs
     stats.update({"cloud": str(args.cloud), "points": len(cloud), "object": str(args.object),
                   "triangles": int(mesh.n_faces), "camera": camera.to_dict(),
@@ -111,8 +106,15 @@ def run(args) -> int:
                   "tonemapper": "Khronos PBR Neutral", "exposure": exposure,
                   "bsh": {k: v for k, v in r.hierarchy.stats.items()
                           if isinstance(v, (int, float, str))}})
-    if args.stats:
-        write_json(args.stats, stats)
+    # every output to a temporary, then all renamed together (app/io/outputs.py)
+    with OutputSet({"--out": args.out, "--png": args.png, "--stats": args.stats}) as outs:
+        write_exr(outs.temp("--out"), rgba[..., :3])
+        if args.png:
+            from app.io.images import write_png
+            from app.render.tonemap import tonemap_to_srgb8
+            write_png(outs.temp("--png"), tonemap_to_srgb8(rgba, exposure))
+        if args.stats:
+            write_json(outs.temp("--stats"), stats)
     print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}) in "
           f"{st.ms:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0

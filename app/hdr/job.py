@@ -68,6 +68,8 @@ class ExpandRequest:
     out_path: str | None = None
     report_path: str | None = None
     return_cloud: bool = True
+    output_name: str | None = None   # the cloud's final name, for the report (out_path may be
+    #                                  a temporary the command renames when everything is done)
 
     def __post_init__(self):
         if not isinstance(self.params, ExpandParams):
@@ -120,7 +122,7 @@ def run_expand_request(req: ExpandRequest, progress=None, cancel=None) -> Expans
     res.report["inputs"] = {k: names.get(k) for k in ("cloud", "photo", "cameras")}
     if req.out_path:
         save_cloud(res.cloud, req.out_path)
-        res.report["output"] = str(req.out_path)
+        res.report["output"] = str(req.output_name or req.out_path)
     if req.report_path:
         write_json(req.report_path, res.report)   # atomic; NaN is written as null
     if not req.return_cloud:

@@ -60,3 +60,89 @@ def check_outputs(inputs: dict, outputs: dict) -> None:
             if p.resolve() == q.resolve() or (p.exists() and q.exists() and _same_file(p, q)):
                 raise ScanlightError(p, f"{flag} and {other_flag} name the same file")
         _writable_folder(p, flag)
+
+
+class OutputSet:
+    """All outputs of one command, committed together or not at all.
+
+    ``with OutputSet({"--out": path, "--stats": path2}) as outs:`` then write each output to
+    ``outs.temp(flag)`` (a hidden temporary beside its target, same extension, so writers that
+    pick the format from it still work). Leaving the block normally renames every temporary over
+    its target, under an exclusive lock on this set of targets, with Ctrl-C held off for those
+    few renames: two runs into the same outputs cannot interleave (one run's cloud with the
+    other's report), and an interrupted run never leaves half of its outputs. Leaving it by an
+    exception (an error, Ctrl-C) deletes the temporaries: nothing is written, and the caller
+    says so.
+    """
+
+    def __init__(self, outputs: dict):
+        self.targets = {flag: Path(v) for flag, v in outputs.items() if v}
+        self._temps: dict[str, Path] = {}
+
+    def temp(self, flag: str) -> Path:
+        if flag not in self._temps:
+            import tempfile
+            target = self.targets[flag]
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix,
+                                       dir=target.parent)
+            os.close(fd)
+            self._temps[flag] = Path(tmp)
+        return self._temps[flag]
+
+    def __enter__(self) -> "OutputSet":
+        return self
+
+    def __exit__(self, kind, exc, tb) -> bool:
+        if kind is None:
+            self._commit()
+        else:
+            self._discard()
+        return False
+
+    def discard(self) -> None:
+        """Give up: delete the temporaries (leaving the block then commits nothing)."""
+        self._discard()
+
+    def _discard(self) -> None:
+        for tmp in self._temps.values():
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
+        self._temps.clear()
+
+    def _lock_path(self) -> Path:
+        import hashlib
+        import tempfile
+        key = "\n".join(sorted(str(p.resolve()) for p in self.targets.values()))
+        return Path(tempfile.gettempdir()) / (
+            "scanlight-outputs-" + hashlib.sha256(key.encode()).hexdigest()[:16] + ".lock")
+
+    def _commit(self) -> None:
+        import fcntl
+        import signal
+        umask = os.umask(0)
+        os.umask(umask)
+        previous = signal.getsignal(signal.SIGINT)
+        in_main = _main_thread()
+        try:
+            with open(self._lock_path(), "a") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                if in_main:
+                    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the renames are one step
+                for flag, tmp in self._temps.items():
+                    os.chmod(tmp, 0o666 & ~umask)   # mkstemp makes 0600: outputs are user files
+                    os.replace(tmp, self.targets[flag])
+                self._temps.clear()
+        except BaseException:
+            self._discard()
+            raise
+        finally:
+            if in_main:
+                signal.signal(signal.SIGINT, previous)
+
+
+def _main_thread() -> bool:
+    import threading
+    return threading.current_thread() is threading.main_thread()

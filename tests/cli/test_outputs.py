@@ -27,7 +27,8 @@ def inputs(tmp_path):
                                             "scale": 0.6}))
     (d / "cam.json").write_text(json.dumps({"position": [0.3, 1.0, 0.9], "look_at": [0, 0.8, 0],
                                             "fov_y_deg": 40, "width": 8, "height": 6}))
-    write_exr(d / "photo.exr", np.full((16, 16, 3), 2.0, np.float32))
+    ramp = np.geomspace(0.01, 8.0, 32, dtype=np.float32)        # a photo with dynamic range
+    write_exr(d / "photo.exr", np.repeat(np.tile(ramp, (32, 1))[..., None], 3, axis=-1))
     (d / "cams.json").write_text(json.dumps([{"position": [0.0, 1.0, 0.0]}]))
     return d
 
@@ -109,3 +110,74 @@ def test_distinct_outputs_still_work(inputs, capsys):
                         str(inputs / "new" / "o.json"), "--microbuffer", "8"))
     assert code == 0, capsys.readouterr().err
     assert (inputs / "new" / "o.exr").is_file() and (inputs / "new" / "o.json").is_file()
+
+
+def _leftovers(d):
+    return sorted(p.name for p in d.iterdir() if p.name.startswith("."))
+
+
+def test_a_failed_expansion_leaves_neither_output(inputs, capsys):
+    """The job fails late (an all-black photo): no cloud, no report, no temporaries."""
+    import numpy as np
+
+    from app.io.exr import write_exr
+    write_exr(inputs / "black.exr", np.zeros((16, 16, 3), np.float32))
+    argv = ["expand", "--cloud", str(inputs / "room.ply"), "--photo", str(inputs / "black.exr"),
+            "--cameras", str(inputs / "cams.json"), "--face-size", "16", "--worker", "sync",
+            "--out", str(inputs / "h.ply"), "--report", str(inputs / "h.json")]
+    assert main(argv) == 3
+    assert "all black" in capsys.readouterr().err
+    assert not (inputs / "h.ply").exists() and not (inputs / "h.json").exists()
+    assert _leftovers(inputs) == []
+
+
+def test_concurrent_renders_into_the_same_outputs_never_mix(inputs):
+    """Two runs at different sizes into one --out/--stats, three times: the image and the stats
+    that end up side by side always come from the same run."""
+    import subprocess
+    import sys
+
+    from app.io.exr import read_exr
+    env = dict(os.environ, PYTHONPATH=str(os.getcwd()))
+
+    def start(size):
+        return subprocess.Popen([sys.executable, "-m", "app", *_render(
+            inputs, "--out", str(inputs / "o.exr"), "--stats", str(inputs / "o.json"),
+            "--size", size, "--microbuffer", "8")], env=env, stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE, text=True)
+    for _ in range(3):
+        runs = [start("8x6"), start("12x9")]
+        for r in runs:
+            _, err = r.communicate(timeout=300)
+            assert r.returncode == 0, err
+        width = read_exr(inputs / "o.exr").rgb.shape[1]
+        stats = json.loads((inputs / "o.json").read_text())
+        assert stats["width"] == width
+        assert _leftovers(inputs) == []
+
+
+def test_ctrl_c_during_expand_writes_nothing_and_says_so(inputs):
+    import signal
+    import subprocess
+    import sys
+    import time
+    env = dict(os.environ, PYTHONPATH=str(os.getcwd()))
+    argv = [sys.executable, "-m", "app", "expand", "--cloud", str(inputs / "room.ply"),
+            "--photo", str(inputs / "photo.exr"), "--cameras", str(inputs / "cams.json"),
+            "--face-size", "2048", "--out", str(inputs / "h.ply"),
+            "--report", str(inputs / "h.json")]
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    seen = []
+    for line in proc.stderr:        # interrupt while the job runs (its progress lines say so)
+        seen.append(line)
+        if "capture" in line:
+            time.sleep(0.2)
+            break
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    err = "".join(seen) + err
+    assert proc.returncode == 130, err
+    assert "nothing written" in err
+    assert not (inputs / "h.ply").exists() and not (inputs / "h.json").exists()
+    assert _leftovers(inputs) == []

@@ -38,7 +38,9 @@ MESH_EXTENSIONS = (".glb", ".gltf", ".obj")
 
 @dataclass
 class Mesh:
-    """positions (V,3) f32; normals (V,3) f32 unit; uvs (V,2) f32 or None; tangents (V,4) f32;
+    """positions (V,3) f64 (an asset placed a million metres from the origin keeps its shape:
+    float32 there rounds to 6 cm; the renderers subtract their origin before the GPU's float32);
+    normals (V,3) f32 unit; uvs (V,2) f32 or None; tangents (V,4) f32;
     indices (F,3) uint32; material_ids (F,) uint32 into ``materials``; report: what the loader
     did (warnings, counts)."""
 
@@ -53,7 +55,7 @@ class Mesh:
     report: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
+        self.positions = np.ascontiguousarray(self.positions, dtype=np.float64).reshape(-1, 3)
         self.normals = np.ascontiguousarray(self.normals, dtype=np.float32).reshape(-1, 3)
         self.tangents = np.ascontiguousarray(self.tangents, dtype=np.float32).reshape(-1, 4)
         if self.uvs is not None:

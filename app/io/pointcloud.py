@@ -44,6 +44,7 @@ CLOUD_EXTENSIONS = (".ply", ".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts")
 # Below this |coordinate| float32 keeps 0.12 mm (half an ulp at 2048..4096 m is 2^-13 m); further
 # out (georeferenced scans, 1e6 m offsets) save_cloud writes doubles.
 FLOAT32_COORD_LIMIT = 4096.0
+FLOAT32_FAR = 1e5   # metres: beyond this a float32 coordinate is rounded to 8 mm or worse
 NORMAL_NEIGHBOURS = 20  # k nearest neighbours for the normal estimation plane fit
 DEFAULT_COLOR = 0.5  # linear grey for clouds stored without colours
 
@@ -163,7 +164,12 @@ def _read_ply(p: Path) -> dict:
     if not all(k in data for k in "xyz"):
         raise ScanlightError(p, "PLY vertex element lacks x, y, z")
     out = {"positions": np.stack([data[k].astype(np.float64) for k in "xyz"], axis=1),
-           "normals": None, "colors": None, "color_type": None}
+           "normals": None, "colors": None, "color_type": None, "warnings": []}
+    far = float(np.abs(out["positions"]).max()) if len(out["positions"]) else 0.0
+    if far > FLOAT32_FAR and any(np.dtype(_PLY_TYPES[types[k]]).itemsize < 8 for k in "xyz"):
+        step = float(np.spacing(np.float32(far)))
+        out["warnings"].append(f"positions up to {far:.3g} m stored as 32-bit floats are rounded "
+                               f"to {step * 100:.2g} cm steps there; store x, y, z as double")
     for nn in _NORMAL_NAMES:
         if all(k in data for k in nn):
             out["normals"] = np.stack([data[k] for k in nn], axis=1).astype(np.float32)

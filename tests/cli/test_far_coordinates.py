@@ -1,0 +1,73 @@
+"""A scan georeferenced far from the origin renders the image it renders at the origin
+(positions are float64 until each renderer subtracts its origin); float32 files that far away
+are read with a warning about their precision."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.support import scenes as S
+from app.cli import main
+from app.cloud import PointCloud
+from app.io.exr import read_exr
+from app.io.pointcloud import load_cloud, save_cloud
+
+
+def _render_at(d, offset: float) -> np.ndarray:
+    base = S.box_room(0.08)
+    off = np.array([offset, 0.0, offset])
+    tag = f"{offset:g}"
+    save_cloud(PointCloud(base.positions + off, base.normals, base.colors, hdr=True),
+               d / f"room{tag}.ply")
+    (d / f"obj{tag}.json").write_text(json.dumps({"mesh": "sphere", "scale": 0.6,
+                                                  "translate": list(off + [0, 0.8, 0])}))
+    (d / f"cam{tag}.json").write_text(json.dumps({
+        "position": list(off + [0.3, 1.0, 0.9]), "look_at": list(off + [0, 0.8, 0]),
+        "fov_y_deg": 40, "width": 24, "height": 18}))
+    assert main(["render", "--cloud", str(d / f"room{tag}.ply"), "--object",
+                 str(d / f"obj{tag}.json"), "--camera", str(d / f"cam{tag}.json"), "--out",
+                 str(d / f"o{tag}.exr"), "--mode", "classic", "--microbuffer", "8"]) == 0
+    return read_exr(d / f"o{tag}.exr").rgb
+
+
+def test_a_scene_a_million_or_ten_million_metres_away_renders_the_same(tmp_path):
+    """Before: 14% off with a faceted sphere at 1e6 m, an all-zero image at 1e7 m (the asset's
+    vertices were rounded to float32 in world space)."""
+    ref = _render_at(tmp_path, 0.0)
+    assert ref.mean() > 0.01
+    for offset in (1e6, 1e7):
+        img = _render_at(tmp_path, offset)
+        assert np.abs(img - ref).mean() / ref.mean() < 1e-5, offset
+
+
+def test_float32_positions_far_away_are_read_with_a_warning(tmp_path, caplog):
+    pts = np.array([[2e5, 0.0, 0.0], [2e5, 1.0, 0.0], [2e5, 0.0, 1.0]] * 6)
+    rec = np.zeros(len(pts), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4")])
+    rec["x"], rec["y"], rec["z"] = pts.T
+    p = tmp_path / "far.ply"
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 18\nproperty float x\n"
+            "property float y\nproperty float z\nend_header\n")
+    p.write_bytes(head.encode() + rec.tobytes())
+    cloud = load_cloud(p)
+    text = " ".join(cloud.report.get("warnings", [])) + caplog.text
+    assert "32-bit floats" in text and "double" in text
+    near = tmp_path / "near.ply"
+    rec["x"] -= 2e5
+    near.write_bytes(head.encode() + rec.tobytes())
+    caplog.clear()
+    cloud = load_cloud(near)
+    assert "32-bit" not in " ".join(cloud.report.get("warnings", [])) + caplog.text
+
+
+@pytest.mark.parametrize("offset", [1e6])
+def test_the_asset_keeps_float64_positions(offset):
+    from app.io.mesh import make_sphere_mesh, transform_mesh
+    m = np.eye(4)
+    m[:3, 3] = offset
+    mesh = transform_mesh(make_sphere_mesh(2), m)
+    assert mesh.positions.dtype == np.float64
+    r = np.linalg.norm(mesh.positions - offset, axis=1)
+    assert np.allclose(r, r.mean(), rtol=1e-9)

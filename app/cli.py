@@ -57,13 +57,19 @@ def main(argv: list[str] | None = None) -> int:
     command = args.command or "view"
     if args.command is None:
         args = parser.parse_args(["view"] if argv is None else list(argv) + ["view"])
+    from app.io.outputs import COMMITTED
+    commits = len(COMMITTED)
     try:
         return int(importlib.import_module(COMMANDS[command][0]).run(args) or 0)
     except ScanlightError as err:
         print(f"scanlight {command}: error: {err}", file=sys.stderr)
         return err.exit_code
     except KeyboardInterrupt:
-        done = ("; nothing written" if command in ("render", "expand", "evaluate") else "")
+        if len(COMMITTED) > commits:   # Ctrl-C came after the outputs were all in place
+            done = " after its outputs were written (they are complete: " + ", ".join(
+                COMMITTED[-1]) + ")"
+        else:
+            done = "; nothing written" if command in ("render", "expand", "evaluate") else ""
         print(f"scanlight {command}: interrupted{done}", file=sys.stderr)
         return 130
     except Exception as exc:  # a bug, not bad input: one line, traceback with -v

@@ -30,6 +30,8 @@ def require_file(path, kind: str, extensions: tuple[str, ...] | None = None) -> 
         raise ScanlightError(p, f"{kind} path is not a file")
     if p.stat().st_size == 0:
         raise ScanlightError(p, f"{kind} file is empty")
+    if not os.access(p, os.R_OK):
+        raise ScanlightError(p, f"cannot read the {kind} file (permission denied)")
     return p
 
 

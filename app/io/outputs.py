@@ -62,6 +62,9 @@ def check_outputs(inputs: dict, outputs: dict) -> None:
         _writable_folder(p, flag)
 
 
+COMMITTED: list[tuple[str, ...]] = []   # target sets committed by this process, in order
+
+
 class OutputSet:
     """All outputs of one command, committed together or not at all.
 
@@ -134,6 +137,7 @@ class OutputSet:
                 for flag, tmp in self._temps.items():
                     os.chmod(tmp, 0o666 & ~umask)   # mkstemp makes 0600: outputs are user files
                     os.replace(tmp, self.targets[flag])
+                COMMITTED.append(tuple(str(self.targets[f]) for f in self._temps))
                 self._temps.clear()
         except BaseException:
             self._discard()

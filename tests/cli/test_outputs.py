@@ -181,3 +181,22 @@ def test_ctrl_c_during_expand_writes_nothing_and_says_so(inputs):
     assert "nothing written" in err
     assert not (inputs / "h.ply").exists() and not (inputs / "h.json").exists()
     assert _leftovers(inputs) == []
+
+
+def test_ctrl_c_after_the_commit_does_not_claim_nothing_was_written(tmp_path, monkeypatch,
+                                                                    capsys):
+    """The signal lands while the command reports, after its outputs were renamed into place:
+    the line says they are complete (it used to say "interrupted" over finished outputs)."""
+    from app.commands import evaluate
+    from app.io.outputs import OutputSet
+    target = tmp_path / "m.json"
+
+    def run(args):
+        with OutputSet({"--json": target}) as outs:
+            outs.temp("--json").write_text("{}")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(evaluate, "run", run)
+    code = main(["evaluate", "expansion", "--cloud", "a.ply", "--gt", "b.ply"])
+    err = capsys.readouterr().err
+    assert code == 130 and "after its outputs were written" in err and str(target) in err
+    assert target.read_text() == "{}"

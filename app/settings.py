@@ -25,7 +25,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from app.camera import Camera, camera_from_dict
+from app.camera import MAX_COORD, Camera, camera_from_dict
 from app.errors import ScanlightError
 from app.material import Material, material_from_dict
 from app.params import BY_KEY, PARAMS, REDO
@@ -297,12 +297,13 @@ def _abs(value, base: Path, key: str, source) -> str | None:
 
 
 def _vec3(v, what: str, source) -> tuple[float, float, float]:
-    try:
-        a = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError):
-        a = np.zeros(0)
-    if a.shape != (3,) or not np.isfinite(a).all():
-        raise ScanlightError(source, f"session {what} must be 3 finite numbers, got {v!r}")
+    """3 JSON numbers (not strings, not booleans) within MAX_COORD of the origin."""
+    ok = isinstance(v, (list, tuple)) and len(v) == 3 and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+    a = np.asarray(v, dtype=np.float64) if ok else np.zeros(0)
+    if a.shape != (3,) or not np.isfinite(a).all() or np.abs(a).max() > MAX_COORD:
+        raise ScanlightError(source, f"session {what} must be 3 finite numbers within "
+                                     f"{MAX_COORD:g} m, got {v!r}")
     return tuple(float(x) for x in a)
 
 
@@ -325,7 +326,11 @@ def session_from_dict(d: dict, base: Path, source=None) -> Session:
     for i, c in enumerate(cams):
         if not isinstance(c, dict):
             raise ScanlightError(source, f"capture camera {i} must be an object")
-        s.capture_cameras.append(CaptureCamera(str(c.get("name", f"capture {i + 1}")),
+        name = c.get("name", f"capture {i + 1}")
+        if not isinstance(name, str):
+            raise ScanlightError(source, f"capture camera {i} 'name' must be a string, "
+                                         f"got {name!r}")
+        s.capture_cameras.append(CaptureCamera(name,
                                                _vec3(c.get("position"), f"capture camera {i} "
                                                      "'position'", source)))
     t = d.get("asset_transform") or {}

@@ -325,3 +325,74 @@ def test_exr_size_is_checked_from_the_header_first(tmp_path, monkeypatch):
     exr.write_exr(p, np.ones((16, 16, 3), np.float32))
     monkeypatch.setattr(exr, "MAX_IMAGE_PIXELS", 100)
     _refused(p, exr.read_image, "16x16", "limit")
+
+
+def _load_session(p):
+    from app.settings import load_session
+    return load_session(p)
+
+
+def _load_object(p):
+    from app.io.formats import load_object
+    return load_object(p)
+
+
+SESSION = {"scanlight_session": 1, "files": {"cloud": "demo", "photo": "demo", "asset": "sphere"},
+           "capture_cameras": [{"name": "c", "position": [0, 1, 0]}],
+           "asset_transform": {"translate": [0, 0.6, 0], "rotate_deg": [0, 0, 0], "scale": 0.8},
+           "materials": None, "mode": "hybrid", "camera": None, "settings": {}}
+SESSION_PATHS = {
+    "files": lambda v: {"files": v},
+    "files.cloud": lambda v: {"files": {**SESSION["files"], "cloud": v}},
+    "capture position": lambda v: {"capture_cameras": [{"name": "c", "position": v}]},
+    "capture name": lambda v: {"capture_cameras": [{"name": v, "position": [0, 1, 0]}]},
+    "translate": lambda v: {"asset_transform": {**SESSION["asset_transform"], "translate": v}},
+    "scale": lambda v: {"asset_transform": {**SESSION["asset_transform"], "scale": v}},
+    "mode": lambda v: {"mode": v},
+    "settings value": lambda v: {"settings": {"pbgi.microbuffer": v}},
+    "settings": lambda v: {"settings": v},
+}
+
+
+@FUZZ
+@given(where=st.sampled_from(sorted(SESSION_PATHS)),
+       value=st.one_of(st.booleans(), st.just("12"), st.just([1, 2]), st.just({"a": 1}),
+                       st.just(-5.0), st.just([True, 1, 2]), st.just(["0", "1", "0"]),
+                       st.just([1e300, 0, 0])))
+def test_generated_session_files_with_wrong_types(where, value, tmp_path):
+    doc = {**SESSION, **SESSION_PATHS[where](value)}
+    p = tmp_path / "s.json"
+    p.write_text(json.dumps(doc))
+    valid = ((where in ("capture name", "files.cloud") and isinstance(value, str))
+             or (where == "settings value" and isinstance(value, float)))   # clamped: 8
+    if not valid:
+        _refused(p, _load_session)
+        return
+    s = _load_session(p)
+    assert s.settings["pbgi.microbuffer"] in range(8, 33)
+
+
+OBJECT = {"mesh": "sphere", "translate": [0, 0.8, 0], "scale": 0.6, "rotate_deg": [0, 0, 0]}
+
+
+@FUZZ
+@given(key=st.sampled_from(sorted(OBJECT)), value=NOT_A_NUMBER)
+def test_generated_object_files_with_wrong_types(key, value, tmp_path):
+    p = tmp_path / "obj.json"
+    p.write_text(json.dumps({**OBJECT, key: value}))
+    _refused(p, _load_object, key)
+
+
+@FUZZ
+@given(lines=st.lists(st.text(alphabet="0123456789.-e naNif,\t", max_size=24), min_size=1,
+                      max_size=6))
+def test_generated_xyz_text_never_crashes(lines, tmp_path):
+    """Random text as an .xyz cloud: a cloud or one line naming the file, never another error."""
+    p = tmp_path / "gen.xyz"
+    p.write_text("\n".join(lines) + "\n")
+    try:
+        cloud = _load_cloud(p)
+    except ScanlightError as err:
+        assert "\n" not in str(err) and str(p) in str(err)
+        return
+    assert np.isfinite(cloud.positions).all() and len(cloud) > 0

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.camera import parse_size
+from app.camera import MAX_PIXELS, parse_size
 from app.commands.options import add_param_options, param_values
 from app.errors import UsageError
 
@@ -53,6 +53,11 @@ def _check_args(args) -> dict:
         raise UsageError(None, f"--out must name an .exr file, got {args.out!r}")
     if args.png and Path(args.png).suffix.lower() != ".png":
         raise UsageError(None, f"--png must name a .png file, got {args.png!r}")
+    if args.size:
+        w, h = parse_size(args.size)
+        if w * h > MAX_PIXELS:
+            raise UsageError(None, f"--size {w}x{h} is larger than the limit of {MAX_PIXELS:,} "
+                                   "pixels (8192x8192)")
     return param_values(args, "render")
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.camera import MAX_COORD
 from app.errors import ScanlightError
 from app.io.files import read_json, require_file
 from app.io.mesh import MESH_EXTENSIONS, Mesh, load_mesh, make_sphere_mesh, transform_mesh
@@ -91,10 +92,13 @@ def object_from_dict(d, base_dir, source=None) -> ObjectSpec:
     scale = 1.0
     if "scale" in d:
         scale = _number(d["scale"])
-        if scale is None or scale <= 0:
-            raise ScanlightError(source, f"object 'scale' must be a finite number > 0, "
+        if scale is None or not 1e-6 <= scale <= 1e6:
+            raise ScanlightError(source, f"object 'scale' must be a number in [1e-6, 1e6], "
                                          f"got {d['scale']!r}")
     translate = _vec3(d, "translate", source) if "translate" in d else (0.0, 0.0, 0.0)
+    if max(abs(v) for v in translate) > MAX_COORD:
+        raise ScanlightError(source, f"object 'translate' must be within {MAX_COORD:g} m of the "
+                                     f"origin, got {list(translate)!r}")
     rotate = _vec3(d, "rotate_deg", source) if "rotate_deg" in d else (0.0, 0.0, 0.0)
     return ObjectSpec(mesh, translate, scale, rotate, None if source is None else str(source))
 

@@ -396,3 +396,21 @@ def test_generated_xyz_text_never_crashes(lines, tmp_path):
         assert "\n" not in str(err) and str(p) in str(err)
         return
     assert np.isfinite(cloud.positions).all() and len(cloud) > 0
+
+
+@pytest.mark.parametrize("change,word", [({"scale": 1e308}, "scale"),
+                                         ({"translate": [1e300, 0, 0]}, "translate")])
+def test_object_scale_and_translate_limits(change, word, tmp_path):
+    p = tmp_path / "obj.json"
+    p.write_text(json.dumps({**OBJECT, **change}))
+    _refused(p, _load_object, word)
+
+
+def test_render_size_beyond_the_pixel_limit_is_a_usage_error(good, tmp_path, capsys):
+    from app.cli import main
+    code = main(["render", "--cloud", str(good / "room.ply"), "--object", str(good / "obj.json"),
+                 "--camera", str(good / "cam.json"), "--out", str(tmp_path / "o.exr"),
+                 "--size", "16384x16384"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "limit" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "o.exr").exists()

@@ -414,3 +414,40 @@ def test_render_size_beyond_the_pixel_limit_is_a_usage_error(good, tmp_path, cap
     err = capsys.readouterr().err.strip()
     assert code == 2 and "limit" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "o.exr").exists()
+
+
+GLTF_PATHS = {
+    "accessor count": lambda d, v: d["accessors"][0].update(count=v),
+    "accessor componentType": lambda d, v: d["accessors"][0].update(componentType=v),
+    "accessor type": lambda d, v: d["accessors"][0].update(type=v),
+    "accessor bufferView": lambda d, v: d["accessors"][0].update(bufferView=v),
+    "bufferView byteLength": lambda d, v: d["bufferViews"][0].update(byteLength=v),
+    "bufferView byteOffset": lambda d, v: d["bufferViews"][0].update(byteOffset=v),
+    "buffer uri": lambda d, v: d["buffers"][0].update(uri=v),
+    "node mesh": lambda d, v: d["nodes"][0].update(mesh=v),
+    "node children": lambda d, v: d["nodes"][0].update(children=v),
+    "node matrix": lambda d, v: d["nodes"][0].update(matrix=v),
+    "scene nodes": lambda d, v: d["scenes"][0].update(nodes=v),
+    "primitive indices": lambda d, v: d["meshes"][0]["primitives"][0].update(indices=v),
+    "primitive mode": lambda d, v: d["meshes"][0]["primitives"][0].update(mode=v),
+}
+
+
+@settings(max_examples=150, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(where=st.sampled_from(sorted(GLTF_PATHS)),
+       value=st.one_of(st.booleans(), st.text(max_size=6), st.none(), st.just(-1),
+                       st.just(10**12), st.just(7), st.just([1, 2]), st.just({"a": 1}),
+                       st.just(1e308)))
+def test_generated_gltf_documents_never_crash(where, value, tmp_path):
+    """A valid one-triangle glTF with one field replaced: a mesh, or one line naming the file."""
+    doc = _gltf([{"mesh": 0}])
+    GLTF_PATHS[where](doc, value)
+    p = tmp_path / "gen.gltf"
+    p.write_text(json.dumps(doc))
+    try:
+        mesh = _load_mesh(p)
+    except ScanlightError as err:
+        assert "\n" not in str(err) and str(p) in str(err), str(err)
+        return
+    assert np.isfinite(mesh.positions).all() and mesh.n_faces >= 1

@@ -27,6 +27,7 @@ from __future__ import annotations
 import io
 import logging
 import re
+import struct
 import warnings
 from pathlib import Path
 
@@ -223,6 +224,23 @@ def _pcd_header(p: Path) -> tuple[int, str, int, int]:
 def _read_pcd(p: Path) -> dict:
     n, kind, header_len, stride = _pcd_header(p)
     size = p.stat().st_size
+    if n < 0:
+        raise ScanlightError(p, f"corrupt PCD: negative point count {n}")
+    if kind not in ("ascii", "binary", "binary_compressed"):
+        raise ScanlightError(p, f"corrupt PCD: DATA must be ascii, binary or binary_compressed, "
+                                f"got {kind!r}")
+    if kind == "binary_compressed":
+        # two uint32 (compressed size, uncompressed size) then the LZF data: both must agree
+        # with the header and the file, or the decoder turns random bytes into points
+        with open(p, "rb") as f:
+            f.seek(header_len)
+            sizes = f.read(8)
+        if len(sizes) < 8:
+            raise ScanlightError(p, "truncated PCD: binary_compressed data has no size header")
+        packed, unpacked = struct.unpack("<II", sizes)
+        if unpacked != n * stride or packed > size - header_len - 8:
+            raise ScanlightError(p, f"corrupt PCD: compressed block of {packed} bytes expanding "
+                                    f"to {unpacked} does not hold {n} points of {stride} bytes")
     if kind == "ascii":
         with open(p, "rb") as f:
             f.seek(header_len)

@@ -71,3 +71,51 @@ def test_the_asset_keeps_float64_positions(offset):
     assert mesh.positions.dtype == np.float64
     r = np.linalg.norm(mesh.positions - offset, axis=1)
     assert np.allclose(r, r.mean(), rtol=1e-9)
+
+
+def _room_at(d, offset: float, tag: str):
+    base = S.box_room(0.08)
+    off = np.array([offset, 0.0, offset])
+    save_cloud(PointCloud(base.positions + off, base.normals, np.clip(base.colors, 0, 1),
+                          hdr=False), d / f"{tag}.ply")
+    return off
+
+
+def test_the_expansion_far_from_the_origin_matches_the_one_at_it(tmp_path):
+    """Same room, photo and capture position, 1e6 m away: the same expanded colours."""
+    from app.io.exr import write_exr
+    ramp = np.geomspace(0.01, 8.0, 32, dtype=np.float32)
+    write_exr(tmp_path / "photo.exr", np.repeat(np.tile(ramp, (32, 1))[..., None], 3, axis=-1))
+    out = {}
+    for offset in (0.0, 1e6):
+        off = _room_at(tmp_path, offset, f"ldr{offset:g}")
+        (tmp_path / f"cams{offset:g}.json").write_text(json.dumps(
+            [{"position": list(off + [0.0, 1.0, 0.0])}]))
+        assert main(["expand", "--cloud", str(tmp_path / f"ldr{offset:g}.ply"), "--photo",
+                     str(tmp_path / "photo.exr"), "--cameras", str(tmp_path / f"cams{offset:g}.json"),
+                     "--face-size", "32", "--worker", "sync",
+                     "--out", str(tmp_path / f"hdr{offset:g}.ply")]) == 0
+        out[offset] = load_cloud(tmp_path / f"hdr{offset:g}.ply").colors
+    assert np.allclose(out[1e6], out[0.0], rtol=1e-4, atol=1e-5)
+
+
+def test_the_viewer_far_from_the_origin_draws_what_it_draws_at_the_origin(tmp_path):
+    """The offscreen viewer (room splats, asset G-buffer, GI) with everything 1e7 m away."""
+    from app.camera import Camera
+    from app.settings import AssetTransform, Session
+    from app.ui.app import OffscreenViewer
+    images = {}
+    for offset in (0.0, 1e7):
+        off = _room_at(tmp_path, offset, f"room{offset:g}")
+        s = Session(cloud=str(tmp_path / f"room{offset:g}.ply"), photo=None, asset="sphere",
+                    transform=AssetTransform(tuple(off + [0, 0.8, 0]), (0.0, 0.0, 0.0), 0.6),
+                    camera=Camera(off + [0.3, 1.0, 0.9], off + [0, 0.8, 0], fov_y_deg=40,
+                                  width=40, height=30))
+        s.settings.update({"pbgi.microbuffer": 8, "pbgi.mode": "classic"})
+        s.settings.take_changes()
+        v = OffscreenViewer(s, (40, 30))
+        v.run(2, str(tmp_path / f"v{offset:g}.png"))
+        images[offset] = v.engine.view.read_linear()
+    ref = images[0.0]
+    assert (ref[..., 3] > 0).sum() > 50
+    assert np.abs(images[1e7] - ref).mean() / np.abs(ref).mean() < 1e-3

@@ -451,3 +451,25 @@ def test_generated_gltf_documents_never_crash(where, value, tmp_path):
         assert "\n" not in str(err) and str(p) in str(err), str(err)
         return
     assert np.isfinite(mesh.positions).all() and mesh.n_faces >= 1
+
+
+@FUZZ
+@given(points=st.one_of(st.integers(-10**12, -1), st.integers(2, 10**12), st.just(0)),
+       data=st.sampled_from(("ascii", "binary", "binary_compressed", "nonsense")),
+       sizes=st.sampled_from(("4 4 4", "4 4", "8 8 8", "3 4 4", "x 4 4")),
+       types=st.sampled_from(("F F F", "F F", "U U U", "Q F F")))
+def test_generated_pcd_headers(points, data, sizes, types, tmp_path):
+    """PCD headers whose counts, sizes, types or data kind are wrong for one stored point: one
+    line naming the file (or, for a consistent one-point header, a one-point cloud)."""
+    head = (f"# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE {sizes}\nTYPE {types}\n"
+            f"COUNT 1 1 1\nWIDTH {points}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+            f"POINTS {points}\nDATA {data}\n")
+    body = b"0 0 0\n" if data == "ascii" else struct.pack("<3f", 0, 0, 0)
+    p = tmp_path / "gen.pcd"
+    p.write_bytes(head.encode() + body)
+    try:
+        cloud = _load_cloud(p)
+    except ScanlightError as err:
+        assert "\n" not in str(err) and str(p) in str(err), str(err)
+        return
+    assert len(cloud) == 1 and np.isfinite(cloud.positions).all()

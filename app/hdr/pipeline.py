@@ -98,6 +98,9 @@ def _name(names, key):
     return (names or {}).get(key) or key
 
 
+MAX_PHOTO_ASPECT = 16
+
+
 def validate_photo(photo, names=None) -> tuple[np.ndarray, list[str]]:
     """The photo as finite, non-negative float32 (H, W, 3), or a ScanlightError if it is useless."""
     src = _name(names, "photo")
@@ -107,6 +110,12 @@ def validate_photo(photo, names=None) -> tuple[np.ndarray, list[str]]:
     if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 8 or a.shape[1] < 8:
         raise ScanlightError(src, "photo must be an RGB image of at least 8x8 pixels, got "
                                   f"shape {a.shape}")
+    h, w = a.shape[:2]
+    if max(h, w) > MAX_PHOTO_ASPECT * min(h, w):
+        # PatchMatch works on the photo scaled to a few hundred pixels on its long side: a strip
+        # this thin leaves no room for one patch (it failed deep inside with "high - low < 0")
+        raise ScanlightError(src, f"photo of {w}x{h} pixels is a strip (aspect ratio above "
+                                  f"{MAX_PHOTO_ASPECT}:1): crop it to the part of the room")
     rgb, counts = clean_rgb(a, "pixels")
     warnings = []
     if any(counts.values()):

@@ -473,3 +473,13 @@ def test_generated_pcd_headers(points, data, sizes, types, tmp_path):
         assert "\n" not in str(err) and str(p) in str(err), str(err)
         return
     assert len(cloud) == 1 and np.isfinite(cloud.positions).all()
+
+
+def test_a_strip_photo_is_refused_before_patchmatch(tmp_path):
+    """A 20000x10 photo failed deep inside PatchMatch ("high - low < 0", exit 1)."""
+    from app.hdr.pipeline import validate_photo
+    from app.io.exr import read_image, write_exr
+    ramp = np.geomspace(0.01, 8.0, 400, dtype=np.float32)
+    p = tmp_path / "strip.exr"
+    write_exr(p, np.repeat(np.tile(ramp, (10, 1))[..., None], 3, axis=-1))
+    _refused(p, lambda q: validate_photo(read_image(q).rgb, {"photo": str(q)}), "strip")

@@ -8,6 +8,7 @@ import hashlib
 import json
 import os
 import stat
+from pathlib import Path
 
 import pytest
 
@@ -85,17 +86,43 @@ def test_an_output_that_would_destroy_an_input_is_refused(case, inputs, capsys):
     assert not [p for p in inputs.iterdir() if p.name.startswith((".o", "o.", "h.", ".h"))]
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
 def test_a_read_only_output_folder_is_refused_up_front(inputs, capsys):
-    ro = inputs / "ro"
-    ro.mkdir()
-    ro.chmod(stat.S_IRUSR | stat.S_IXUSR)
-    try:
-        code = main(_render(inputs, "--out", str(ro / "o.exr")))
-    finally:
-        ro.chmod(stat.S_IRWXU)
-    err = capsys.readouterr().err.strip()
-    assert code == 3 and "permission denied" in err and len(err.splitlines()) == 1
+    """As an ordinary user (root writes anywhere: under root the command runs as 'nobody'
+    through setpriv, on world-readable copies of the inputs)."""
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    if os.geteuid() != 0:
+        ro = inputs / "ro"
+        ro.mkdir()
+        ro.chmod(stat.S_IRUSR | stat.S_IXUSR)
+        try:
+            code = main(_render(inputs, "--out", str(ro / "o.exr")))
+        finally:
+            ro.chmod(stat.S_IRWXU)
+        err = capsys.readouterr().err.strip()
+    else:
+        if not shutil.which("setpriv"):
+            pytest.skip("running as root without setpriv to drop to an ordinary user")
+        shared = Path(tempfile.mkdtemp(prefix="scanlight-ro-"))
+        try:
+            for name in ("room.ply", "obj.json", "cam.json"):
+                shutil.copy(inputs / name, shared / name)
+                (shared / name).chmod(0o644)
+            shared.chmod(0o755)                 # readable by all, writable by root only
+            env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]),
+                       HOME="/tmp", SCANLIGHT_CACHE=str(Path(tempfile.gettempdir())))
+            res = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534",
+                                  "--clear-groups", sys.executable, "-m", "app",
+                                  *_render(shared, "--out", str(shared / "o.exr"))],
+                                 capture_output=True, text=True, timeout=300, env=env,
+                                 cwd="/tmp")
+            code, err = res.returncode, res.stderr.strip()
+            assert not (shared / "o.exr").exists()
+        finally:
+            shutil.rmtree(shared, ignore_errors=True)
+    assert code == 3 and "cannot write into the folder" in err and len(err.splitlines()) == 1, err
 
 
 def test_an_output_under_a_file_is_refused(inputs, capsys):
@@ -200,3 +227,32 @@ def test_ctrl_c_after_the_commit_does_not_claim_nothing_was_written(tmp_path, mo
     err = capsys.readouterr().err
     assert code == 130 and "after its outputs were written" in err and str(target) in err
     assert target.read_text() == "{}"
+
+
+def test_an_unreadable_input_names_the_users_file(inputs):
+    """An input the user may not read: one line naming that file (it used to name a hidden
+    temporary, or end as an internal error). Run as 'nobody' (root reads everything)."""
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    if not shutil.which("setpriv") or os.geteuid() != 0:
+        pytest.skip("needs root with setpriv to run as an ordinary user")
+    shared = Path(tempfile.mkdtemp(prefix="scanlight-unreadable-"))
+    try:
+        for name in ("room.ply", "obj.json", "cam.json"):
+            shutil.copy(inputs / name, shared / name)
+            (shared / name).chmod(0o644)
+        (shared / "room.ply").chmod(0o600)      # root's only
+        shared.chmod(0o777)
+        env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]), HOME="/tmp")
+        res = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
+                              sys.executable, "-m", "app",
+                              *_render(shared, "--out", str(shared / "o.exr"))],
+                             capture_output=True, text=True, timeout=300, env=env, cwd="/tmp")
+        err = res.stderr.strip()
+        assert res.returncode == 3, err
+        assert len(err.splitlines()) == 1 and str(shared / "room.ply") in err
+        assert "permission denied" in err and not (shared / "o.exr").exists()
+    finally:
+        shutil.rmtree(shared, ignore_errors=True)

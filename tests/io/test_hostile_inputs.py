@@ -483,3 +483,33 @@ def test_a_strip_photo_is_refused_before_patchmatch(tmp_path):
     p = tmp_path / "strip.exr"
     write_exr(p, np.repeat(np.tile(ramp, (10, 1))[..., None], 3, axis=-1))
     _refused(p, lambda q: validate_photo(read_image(q).rgb, {"photo": str(q)}), "strip")
+
+
+@FUZZ
+@given(ext=st.sampled_from((".exr", ".png", ".jpg")), cut=st.integers(0, 400),
+       noise=st.binary(min_size=0, max_size=64))
+def test_generated_truncated_or_corrupted_images(ext, cut, noise, tmp_path):
+    """A valid small image cut short or with bytes overwritten: the image, or one line."""
+    from app.io.exr import read_image, write_exr
+    from app.io.images import write_png
+    good = tmp_path / f"good{ext}"
+    img = np.geomspace(0.01, 4.0, 16 * 16 * 3, dtype=np.float32).reshape(16, 16, 3)
+    if ext == ".exr":
+        write_exr(good, img)
+    elif ext == ".png":
+        write_png(good, (np.clip(img, 0, 1) * 255).astype(np.uint8))
+    else:
+        from PIL import Image
+        Image.fromarray((np.clip(img, 0, 1) * 255).astype(np.uint8)).save(good)
+    data = bytearray(good.read_bytes())
+    data = data[:max(len(data) - cut, 1)]
+    at = len(data) // 2
+    data[at:at + len(noise)] = noise
+    p = tmp_path / f"bad{ext}"
+    p.write_bytes(bytes(data))
+    try:
+        out = read_image(p)
+    except ScanlightError as err:
+        assert "\n" not in str(err) and str(p) in str(err), str(err)
+        return
+    assert np.isfinite(out.rgb).all()

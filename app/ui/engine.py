@@ -116,7 +116,9 @@ class ViewerEngine:
 
     # -- messages --------------------------------------------------------------------------------
     def error(self, text: str, level: str = "error") -> None:
-        log.log(logging.ERROR if level == "error" else logging.INFO, "%s", text)
+        """A message for the user: the window shows it, an offscreen run prints it (or fails
+        with it); the log keeps it at debug level so stderr carries each line once."""
+        log.debug("%s: %s", level, text)
         if not self.messages or self.messages[-1].text != text:
             self.messages.append(Message(text, level))
         del self.messages[:-20]

@@ -98,3 +98,35 @@ def test_cli_reports_bad_arguments_in_one_line(tmp_path):
     from app.errors import ScanlightError
     with pytest.raises(ScanlightError, match="session file not found"):
         run_viewer(_args(session=str(tmp_path / "nope.json")))
+
+
+@pytest.mark.parametrize("broken", ["cloud", "asset"])
+def test_offscreen_fails_with_exit_3_and_no_screenshot_when_a_file_does_not_load(broken,
+                                                                                  tmp_path):
+    """It used to print the errors, write a screenshot of the half-loaded scene and exit 0."""
+    from tests.support.viewer import small_session
+    s = small_session()
+    bad = tmp_path / ("missing.ply" if broken == "cloud" else "corrupt.obj")
+    if broken == "cloud":
+        s.cloud, s.photo = str(bad), None
+    else:
+        bad.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
+        s.asset = str(bad)
+    session = s.save(tmp_path / "s.json")
+    out = tmp_path / "shot.png"
+    env = dict(os.environ, PYTHONPATH=str(ROOT), SCANLIGHT_CONFIG=str(tmp_path / "cfg"))
+    res = subprocess.run([sys.executable, "-m", "app", "view", "--offscreen", "--session",
+                          str(session), "--frames", "1", "--size", "32x24", "--screenshot",
+                          str(out)], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=300)
+    err = res.stderr.strip().splitlines()
+    assert res.returncode == 3, res.stderr
+    assert len(err) == 1 and bad.name in err[0], res.stderr
+    assert not out.exists() and not out.with_suffix(".exr").exists()
+
+
+def test_offscreen_screenshot_must_be_a_png(tmp_path):
+    from app.errors import UsageError
+    from app.ui.app import run_viewer
+    with pytest.raises(UsageError, match=r"\.png"):
+        run_viewer(_args(screenshot=str(tmp_path / "s.jpg")))

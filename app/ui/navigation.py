@@ -10,12 +10,18 @@ the horizon); the eye sits ``distance`` behind the pivot along the view directio
 Orbit turns the eye about the pivot; fly turns the view about the eye and moves both together.
 
 The floor: a user who orbits under the scan sees the back of the floor splats and loses the
-room, so by default every motion keeps the eye ``FLOOR_CLEARANCE`` above the scan's floor
-(``floor_y``, found by ``scan_floor``). Orbiting down stops at the lowest pitch that keeps that
-height (the yaw still turns); pan, zoom, frame and fly lift pivot and eye together by what is
-missing. ``free = True`` (the viewer's "free orbit" setting) lifts the constraint. A view placed
+room, so by default every motion keeps the eye ``FLOOR_CLEARANCE`` (5 cm) above the scan's floor
+(``floor_y``, found by ``scan_floor``). Motions that turn about the pivot keep the pivot where
+it is and tilt the view instead, so what the user looks at stays in the middle of the picture:
+orbiting down stops at the lowest pitch that keeps that height (the yaw still turns), zooming
+out while looking up slides the eye along the floor towards the horizontal, and "frame" does the
+same. Motions that translate (pan, fly) lift pivot and eye together by what is missing, so their
+downward part stops at the floor and the rest goes on. When no pitch can keep the eye up (a
+pivot more than ``distance`` below the floor, or a saved view under it) pivot and eye are lifted
+too. ``free = True`` (the viewer's "free orbit" setting) lifts the constraint. A view placed
 explicitly (``from_camera``, ``look_from``: a saved session, "move to" a capture camera) is kept
-as given; only the motions that follow are constrained.
+as given, under the floor too, since it is the user's own choice; only the motions that follow
+are constrained (the first one lifts the eye).
 """
 
 from __future__ import annotations
@@ -31,21 +37,25 @@ ZOOM_STEP = 0.85               # one wheel notch moves the eye 15% closer to the
 MIN_DISTANCE = 1e-3
 MAX_PITCH = math.radians(89.0)  # never exactly vertical: 'up' would be undefined
 FLOOR_CLEARANCE = 0.05          # metres the eye keeps above the scan's floor (a head above a rug)
-FLOOR_PERCENTILE = 5.0          # of the heights of upward-facing points (below: stray points)
+FLOOR_PERCENTILE = 5.0          # of the heights of horizontal points (below: stray points)
 
 
 def scan_floor(points, normals=None) -> float | None:
-    """The floor height (y is up) of a room scan: the 5th percentile of the heights of points
-    whose normal points up (a floor is the lowest large upward-facing population; the few
-    percent below it are noise and stray points), else of all heights; None below 16 points."""
+    """The floor height (y is up) of a room scan, or None below 16 points.
+
+    The floor is the lowest large horizontal surface: the 5th percentile of the heights of the
+    points on horizontal surfaces (|normal.y| > 0.8: floor, table tops, ceiling; either sign,
+    because photogrammetry often flips normals), so the few percent of stray points and noise
+    below it do not pull it down; without normals (or fewer than 16 horizontal points), the 5th
+    percentile of all heights. Non-finite points are ignored."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     finite = np.isfinite(p).all(axis=1)
     y = p[finite, 1]
     if normals is not None:
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)[finite]
-        up = n[:, 1] > 0.8
-        if up.sum() >= 16:
-            y = y[up]
+        flat = np.abs(n[:, 1]) > 0.8
+        if flat.sum() >= 16:
+            y = y[flat]
     if len(y) < 16:
         return None
     return float(np.percentile(y, FLOOR_PERCENTILE))
@@ -109,18 +119,23 @@ class ViewNavigator:
         if lo is not None and self.position[1] < lo:
             self.pivot[1] += lo - self.position[1]
 
+    def _tilt(self) -> None:
+        """Keep the pivot and the distance; lower the pitch until the eye clears the floor
+        (eye.y = pivot.y - distance * sin(pitch) >= lo  <=>  sin(pitch) <= s). Only a pivot too
+        far below the floor for any pitch is lifted."""
+        lo = self._lowest_eye()
+        if lo is None:
+            return
+        s = (self.pivot[1] - lo) / self.distance
+        if s < 1.0:
+            self.pitch = min(self.pitch, max(math.asin(max(s, -1.0)), -MAX_PITCH))
+        self._lift()
+
     def orbit(self, dx_px: float, dy_px: float) -> None:
         """Mouse drag in pixels (y down): the scene follows the hand, as in Blender."""
         self.yaw = (self.yaw + dx_px * ORBIT_RAD_PER_PX) % (2 * math.pi)
-        pitch = float(np.clip(self.pitch - dy_px * ORBIT_RAD_PER_PX, -MAX_PITCH, MAX_PITCH))
-        lo = self._lowest_eye()
-        if lo is not None:
-            # eye.y = pivot.y - distance * sin(pitch) >= lo  <=>  sin(pitch) <= s
-            s = (self.pivot[1] - lo) / self.distance
-            if s < 1.0:
-                pitch = min(pitch, max(math.asin(max(s, -1.0)), -MAX_PITCH))
-        self.pitch = pitch
-        self._lift()        # a pivot too far below the floor for any pitch
+        self.pitch = float(np.clip(self.pitch - dy_px * ORBIT_RAD_PER_PX, -MAX_PITCH, MAX_PITCH))
+        self._tilt()
 
     def pan(self, dx_px: float, dy_px: float, viewport_height_px: int) -> None:
         """Move pivot and eye so the point at the pivot's depth stays under the cursor."""
@@ -133,7 +148,7 @@ class ViewNavigator:
     def zoom(self, notches: float) -> None:
         """Wheel: positive notches move the eye towards the pivot (geometric, never through it)."""
         self.distance = max(self.distance * ZOOM_STEP ** notches, MIN_DISTANCE)
-        self._lift()
+        self._tilt()
 
     def dolly_drag(self, dy_px: float) -> None:
         """Ctrl+drag zoom (Blender) / Alt+RMB (Maya): drag up moves closer."""
@@ -146,7 +161,7 @@ class ViewNavigator:
         half = min(half_v, half_h)
         self.pivot = np.asarray(centre, dtype=np.float64).copy()
         self.distance = max(1.1 * float(radius) / math.sin(half), MIN_DISTANCE)
-        self._lift()
+        self._tilt()
 
     # -- fly mode --------------------------------------------------------------------------------
     def look(self, dx_px: float, dy_px: float) -> None:

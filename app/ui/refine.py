@@ -20,6 +20,16 @@ time budget:
    showing the upsampled preview. ``progress`` tells the UI how far it got, ``status_words``
    says it in words with the time left.
 
+The time left: the GI render is only part of a frame (the room, the composite, imgui and the
+window's own waiting take the rest), so the estimate comes from the wall-clock time between the
+frames that ran tiles, not from the render times: ``wall * (1 - p) / p`` for the fraction ``p``
+of cells done in ``wall`` seconds, where ``wall`` adds up, for each frame that ran tiles, the
+time since the end of the previous frame's GI step. Frames in which the tiles wait (the user is
+interacting) do not count. The total ``wall / p`` is smoothed (the centre rows, on the asset,
+cost more than the edges), and the words round it coarsely so that they do not flicker from
+frame to frame. Until 5% of the cells and half a second of wall time are in, the overlay says
+it is estimating.
+
 Slicing: one render call cannot be interrupted and costs a fixed set-up (several ms) plus its
 pixels, and the cost per pixel varies over the asset. So a cell is sized to about half a frame
 budget (rounded down to a power of two) and a frame starts another run of cells only when the
@@ -47,11 +57,29 @@ CELL = 32                 # tile granularity before the cost per pixel is known
 MIN_CELL, MAX_CELL = 8, 64
 MIN_PREVIEW_SCALE = 1 / 16
 FIRST_PREVIEW_SCALE = 1 / 16  # before any cost per pixel is known: the cheapest
+ETA_MIN_FRACTION, ETA_MIN_S = 0.05, 0.5   # data needed before the time left is said
+ETA_SMOOTHING = 0.3       # weight of each frame's estimate of the total refinement time
 
 
 def gi_image(height: int, width: int) -> np.ndarray:
     """A zeroed (height, width, 4) float32 image of GI_TEXEL texels (status 0: background)."""
     return GI_TEXEL.flat(GI_TEXEL.zeros(height * width)).reshape(height, width, GI_TEXEL.words)
+
+
+def time_left_words(seconds: float | None) -> str:
+    """ "about 6 s left", coarsely rounded so the overlay does not flicker: whole seconds below
+    10 s, 5 s steps below 90 s, then minutes, then hours from 90 minutes."""
+    if seconds is None:
+        return "estimating the time left"
+    if seconds < 1:
+        return "less than 1 s left"
+    if seconds < 9.5:
+        return f"about {math.floor(seconds + 0.5)} s left"
+    if seconds < 87.5:
+        return f"about {5 * math.floor(seconds / 5 + 0.5)} s left"
+    if seconds < 90 * 60:
+        return f"about {max(2, math.floor(seconds / 60 + 0.5))} min left"
+    return f"about {math.floor(seconds / 3600 + 0.5)} h left"
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -118,7 +146,9 @@ class ProgressiveGI:
         self._bands: list[list] = []
         self._cells_total = 0
         self._cells_done = 0
-        self._tiles_since: float | None = None   # clock when this refinement's tiles began
+        self._wall = 0.0                       # wall-clock seconds of the frames with tiles
+        self._last_step_end: float | None = None  # clock after this refinement's last step
+        self._total_s: float | None = None     # smoothed estimate of the whole refinement
         self._preview_pending = False
         self.preview_dirty = False
         self.full_reset = False
@@ -137,34 +167,23 @@ class ProgressiveGI:
         return self._preview_pending or self._cells_done < self._cells_total
 
     def seconds_left(self) -> float | None:
-        """Wall-clock estimate of the refinement still to come, from the rate at which the tiles
-        advanced since they started (the frames' other work included); None until there is
-        enough to go on (5% of the cells or half a second)."""
-        if not self.refining or self._tiles_since is None or self._cells_total == 0:
+        """Wall-clock seconds the refinement still needs, or None while there is not enough to
+        go on (see the module's docstring)."""
+        if not self.refining or self._total_s is None:
             return None
-        p = self._cells_done / self._cells_total
-        elapsed = self.clock() - self._tiles_since
-        if p <= 0 or (p < 0.05 and elapsed < 0.5):
-            return None
-        return elapsed * (1 - p) / p
+        return max(self._total_s - self._wall, 0.0)
 
     def status_words(self) -> str:
-        """What the GI is doing, for the overlay: "preview at 1/4 resolution", "refining 40%,
-        about 6 s left", "converged"."""
+        """What the GI is doing, in one short sentence for the overlay and the stats panel:
+        "preview at 1/4 resolution" until the first tiles land, then "refining 40%, about 6 s
+        left" (the percentage rounded down, so it never says 100% before the end), and
+        "converged" when nothing is left to do (also when the asset is off screen)."""
         if not self.refining:
             return "converged"
         if self.progress == 0:
             return f"preview at 1/{1 / self.shown_scale:.0f} resolution"
-        left = self.seconds_left()
-        if left is None:
-            eta = "estimating the time left"
-        elif left < 1:
-            eta = "less than 1 s left"
-        elif left < 90:
-            eta = f"about {left:.0f} s left"
-        else:
-            eta = f"about {left / 60:.0f} min left"
-        return f"refining {100 * self.progress:.0f}%, {eta}"
+        percent = 100 * self._cells_done // self._cells_total
+        return f"refining {percent}%, {time_left_words(self.seconds_left())}"
 
     # -- control ---------------------------------------------------------------------------------
     def cell_size(self, budget_ms: float) -> int:
@@ -194,7 +213,7 @@ class ProgressiveGI:
         self._bands = [] if rect is None else strip_tiles(rect, self.cell_size(budget_ms))
         self._cells_total = sum(len(b) for b in self._bands)
         self._cells_done = 0
-        self._tiles_since = None
+        self._wall, self._last_step_end, self._total_s = 0.0, None, None
         self._preview_pending = rect is not None
         if rect is None:  # asset off screen: nothing to draw
             self.preview = gi_image(1, 1)
@@ -213,15 +232,31 @@ class ProgressiveGI:
         if self._preview_pending:
             self._preview(budget_ms)
             changed = True
+        anchor = None
         while allow_tiles and self._bands:
             elapsed = (self.clock() - start) * 1e3
             if changed and elapsed + self._cell_ms() > budget_ms:
                 break       # the next cell would overshoot: let the window draw and listen
-            if self._tiles_since is None:
-                self._tiles_since = self.clock()
+            if anchor is None:  # this frame's share: since the end of the previous step
+                anchor = self._last_step_end if self._last_step_end is not None else start
             self._tile(max(budget_ms - elapsed, budget_ms * 0.25))
             changed = True
+        # A frame whose tiles waited (the user interacting) is not refinement time: only the
+        # time up to a step that ran tiles counts.
+        self._last_step_end = self.clock()
+        if anchor is not None:
+            self._wall += self._last_step_end - anchor
+            self._estimate()
         return changed
+
+    def _estimate(self) -> None:
+        """Smooth the total wall time the refinement takes, from the rate so far."""
+        p = self._cells_done / self._cells_total
+        if p < ETA_MIN_FRACTION or self._wall < ETA_MIN_S:
+            return
+        total = self._wall / p
+        self._total_s = total if self._total_s is None else (
+            self._total_s + ETA_SMOOTHING * (total - self._total_s))
 
     def _cell_ms(self) -> float:
         """Predicted cost of the next cell (0 before any cost is known)."""

@@ -109,16 +109,19 @@ def test_scan_floor_finds_the_floor_under_noise_and_strays():
     pts, nrm = _room()
     assert scan_floor(pts, nrm) == pytest.approx(-1.3, abs=0.01)
     assert scan_floor(pts) == pytest.approx(-1.3, abs=0.02)       # without normals
+    assert scan_floor(pts, -nrm) == pytest.approx(-1.3, abs=0.01)  # normals flipped (photogrammetry)
     assert scan_floor(pts[:5]) is None
+    pts[::50] = np.nan                                              # holes are ignored
+    assert scan_floor(pts, nrm) == pytest.approx(-1.3, abs=0.01)
 
 
 def test_scan_floor_of_the_demo_room():
+    from app.demo import room
     from app.demo.cache import load_demo
     from app.ui.navigation import scan_floor
     scene = load_demo()
     floor = scan_floor(scene.ldr.positions, scene.ldr.normals)
-    # the demo room's floor is its lowest surface (app/demo/room.py)
-    assert floor == pytest.approx(float(np.min(scene.ldr.positions[:, 1])), abs=0.02)
+    assert floor == pytest.approx(room.ROOM_MIN[1], abs=0.01)       # y = 0 (app/demo/room.py)
 
 
 def _nav_above(floor=-1.3):
@@ -162,3 +165,58 @@ def test_pan_zoom_and_fly_lift_the_eye_above_the_floor():
     nav = _nav_above()
     nav.fly(0, 0, -10)
     assert nav.position[1] >= lo - 1e-9
+
+
+def test_one_long_drag_under_the_floor_stops_at_the_clearance():
+    """Thousands of pixels in one event, and a pivot near the floor, as when orbiting an object
+    standing on it."""
+    from app.ui.navigation import FLOOR_CLEARANCE
+    lo = -1.3 + FLOOR_CLEARANCE
+    for pivot_y in (-0.8, -1.25, -1.3, -1.6):
+        nav = _nav_above()
+        nav.pivot[1] = pivot_y
+        nav.orbit(300, -5000)
+        assert nav.position[1] == pytest.approx(lo) and nav.yaw == pytest.approx(1.8)
+        if pivot_y > lo:
+            assert nav.pivot[1] == pivot_y           # the pivot stays: the view tilts
+    nav = _nav_above()
+    nav.pivot[1] = -9.0                             # no pitch can keep the eye up: lifted
+    nav.orbit(0, -5000)
+    assert nav.position[1] == pytest.approx(lo)
+
+
+def test_zoom_out_while_looking_up_keeps_the_pivot_in_the_middle():
+    from app.ui.navigation import FLOOR_CLEARANCE
+    nav = _nav_above()
+    nav.pitch = 0.6                                  # looking up: the eye is below the pivot
+    nav.zoom(-10)
+    assert nav.position[1] == pytest.approx(-1.3 + FLOOR_CLEARANCE)
+    np.testing.assert_allclose(nav.pivot, (0.0, -0.8, 0.0))
+    cam = nav.camera(100, 100)
+    np.testing.assert_allclose(_pixel(cam, nav.pivot), (50, 50), atol=1e-9)
+    assert 0 < nav.pitch < 0.6
+
+
+def test_frame_above_the_floor_keeps_the_asset_centred():
+    from app.ui.navigation import FLOOR_CLEARANCE
+    nav = _nav_above()
+    nav.pitch = 0.5
+    c = np.array([0.0, -1.0, 0.0])                   # an asset standing on the floor
+    nav.frame(c, 0.3)
+    assert nav.position[1] >= -1.3 + FLOOR_CLEARANCE - 1e-9
+    np.testing.assert_allclose(_pixel(nav.camera(100, 100), c), (50, 50), atol=1e-9)
+
+
+def test_a_view_placed_under_the_floor_is_kept_until_the_next_motion():
+    from app.ui.navigation import FLOOR_CLEARANCE
+    nav = _nav_above()
+    nav.look_from((0.0, -2.0, 2.0), (0.0, -0.5, 0.0))
+    np.testing.assert_allclose(nav.position, (0.0, -2.0, 2.0), atol=1e-12)
+    nav.orbit(5, 0)
+    assert nav.position[1] >= -1.3 + FLOOR_CLEARANCE - 1e-9
+
+
+def test_no_floor_means_no_constraint():
+    nav = _nav_above(floor=None)
+    nav.orbit(0, -2000)
+    assert nav.position[1] < -1.3

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from app.camera import Camera
-from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect, strip_tiles
+from app.ui.refine import (ProgressiveGI, scaled_camera, screen_rect, strip_tiles,
+                           time_left_words)
 
 CENTRE, RADIUS = np.array([0.0, 0.6, 0.0]), 0.4
 
@@ -196,50 +197,120 @@ def test_restart_resets_only_the_old_and_new_rectangles():
     assert (gi.full[rect[1]:rect[1] + rect[3], rect[0]:rect[0] + 10, 3] == 0).all()
 
 
-def test_the_overlay_says_what_the_refinement_does_and_how_long_it_takes():
-    """Words, not counters: the preview, then "refining N%, about T s left" with T from the
-    wall-clock rate of progress (the frames' other work included), "converged" at the end; a
-    restart starts the estimate again."""
-    clock = Clock(0.05)
+# The words of the overlay, on constructed timelines. RECT_20 is 20 bands of six 8 x 8 cells:
+# at 0.05 ms/px and a 20 ms budget every frame renders exactly one band (6 cells, 19.2 ms), so
+# frame k ends with k/20 done, and a frame of FRAME seconds (GI included) makes the wall time
+# after k frames k * FRAME and the estimated total 20 * FRAME.
+BIG = Camera(CAM.position, CAM.look_at, fov_y_deg=50, width=480, height=360)
+RECT_20 = (0, 0, 48, 160)
+TILES_S = 6 * 64 * 0.05e-3
+
+
+def _previewed(clock: Clock) -> ProgressiveGI:
     gi = ProgressiveGI(clock.render, clock)
-    big = Camera(CAM.position, CAM.look_at, fov_y_deg=50, width=480, height=360)
-    rect = screen_rect(big, CENTRE - RADIUS, CENTRE + RADIUS)
-    gi.restart(big, rect, 0.25, budget_ms=20)
+    gi.restart(BIG, RECT_20, 0.25, budget_ms=20)
     gi.step(20, allow_tiles=False)
+    return gi
+
+
+def _frame(gi: ProgressiveGI, clock: Clock, seconds: float) -> str:
+    """One frame of ``seconds``: the rest of the frame, then its GI step."""
+    clock.t += seconds - TILES_S
+    gi.step(20)
+    return gi.status_words()
+
+
+def test_the_overlay_says_the_refinement_and_the_time_left_in_words():
+    """Frames of 0.8 s (the GI step is only 19.2 ms of each: the estimate is wall-clock, not
+    render time): 20 frames in all, so after frame k, 16 - 0.8 k seconds are left."""
+    clock = Clock(0.05)
+    gi = _previewed(clock)
     assert gi.status_words() == "preview at 1/16 resolution"
-    gi.step(20)                                   # the first tiles: too early to tell
-    assert gi.status_words().endswith(", estimating the time left")
-    words = []
-    while gi.refining:
-        clock.t += 0.080                          # each frame also spends 80 ms elsewhere
-        gi.step(20)
-        words.append(gi.status_words())
-        if gi.refining and gi.seconds_left() is not None:
-            p = gi.progress
-            elapsed = clock.t - gi._tiles_since
-            assert gi.seconds_left() == pytest.approx(elapsed * (1 - p) / p)
-    assert words[-1] == "converged"
-    assert any(w.startswith("refining") and w.endswith(" s left") and "about" in w
-               for w in words), words
-    # halfway through a new refinement the estimate is the time spent so far
-    gi.restart(big, rect, 0.25, budget_ms=20)
-    assert gi.seconds_left() is None and gi.status_words().startswith("preview")
-    gi.step(20)
-    while gi.progress < 0.5:
-        clock.t += 0.080
-        gi.step(20)
-    left = gi.seconds_left()
-    assert left == pytest.approx((clock.t - gi._tiles_since) * (1 - gi.progress) / gi.progress)
-    assert f"refining {100 * gi.progress:.0f}%, about {left:.0f} s left" == gi.status_words()
+    words = [_frame(gi, clock, 0.8) for _ in range(20)]
+    assert words == [
+        "refining 5%, about 15 s left",      # 15.2 s
+        "refining 10%, about 15 s left",     # 14.4: 5 s steps above 10 s, no flicker
+        "refining 15%, about 15 s left",
+        "refining 20%, about 15 s left",     # 12.8
+        "refining 25%, about 10 s left",     # 12.0
+        "refining 30%, about 10 s left",
+        "refining 35%, about 10 s left",
+        "refining 40%, about 10 s left",     # 9.6: whole seconds below 10 s
+        "refining 45%, about 9 s left",
+        "refining 50%, about 8 s left",
+        "refining 55%, about 7 s left",
+        "refining 60%, about 6 s left",
+        "refining 65%, about 6 s left",      # 5.6
+        "refining 70%, about 5 s left",
+        "refining 75%, about 4 s left",
+        "refining 80%, about 3 s left",
+        "refining 85%, about 2 s left",
+        "refining 90%, about 2 s left",      # 1.6
+        "refining 95%, less than 1 s left",  # 0.8
+        "converged",
+    ]
 
 
-def test_time_left_is_said_in_minutes_beyond_ninety_seconds():
+def test_the_estimate_waits_for_enough_data():
+    """Fast frames: 5% of the cells after the first one, but only 0.12 s of wall time."""
     clock = Clock(0.05)
-    gi = ProgressiveGI(clock.render, clock)
-    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
-    gi.restart(CAM, rect, 0.25, budget_ms=20)
+    gi = _previewed(clock)
+    words = [_frame(gi, clock, 0.12) for _ in range(6)]
+    assert words[:4] == ["refining 5%, estimating the time left",
+                         "refining 10%, estimating the time left",
+                         "refining 15%, estimating the time left",
+                         "refining 20%, estimating the time left"]
+    assert words[4:] == ["refining 25%, about 2 s left",        # 0.6 s in: 1.8 s left
+                         "refining 30%, about 2 s left"]        # 1.68 s
+
+
+def test_interaction_pauses_and_a_restart_start_the_estimate_again():
+    clock = Clock(0.05)
+    gi = _previewed(clock)
+    for _ in range(10):
+        words = _frame(gi, clock, 0.8)
+    assert words == "refining 50%, about 8 s left"
+    for _ in range(3):                  # the user drags a slider: tiles wait, time is not counted
+        clock.t += 5.0
+        gi.step(20, allow_tiles=False)
+        assert gi.status_words() == "refining 50%, about 8 s left"
+    assert _frame(gi, clock, 0.8) == "refining 55%, about 7 s left"
+    # A new view: a new preview, and an estimate owing nothing to the old one (frames now 2 s).
+    gi.restart(BIG, RECT_20, 0.25, budget_ms=20)
+    assert gi.seconds_left() is None
     gi.step(20, allow_tiles=False)
-    gi.step(20)
-    clock.t += 60.0                               # a very slow machine
-    gi.step(20)
-    assert gi.status_words().endswith(" min left")
+    assert gi.status_words() == f"preview at 1/{1 / gi.shown_scale:.0f} resolution"
+    assert _frame(gi, clock, 2.0) == "refining 5%, about 40 s left"      # 38 s
+    assert _frame(gi, clock, 2.0) == "refining 10%, about 35 s left"     # 36 s
+
+
+def test_the_estimate_is_smoothed_when_the_frames_slow_down():
+    """Ten frames of 0.5 s, then frames of 1.5 s: each frame's estimate of the total moves the
+    smoothed one by 30% of the way (refine.ETA_SMOOTHING)."""
+    clock = Clock(0.05)
+    gi = _previewed(clock)
+    for _ in range(10):
+        words = _frame(gi, clock, 0.5)
+    assert words == "refining 50%, about 5 s left"              # total 10 s
+    assert _frame(gi, clock, 1.5) == "refining 55%, about 4 s left"
+    total = 10 + 0.3 * (6.5 / 0.55 - 10)
+    assert gi.seconds_left() == pytest.approx(total - 6.5)      # 4.05 s (unsmoothed: 5.3 s)
+    assert _frame(gi, clock, 1.5) == "refining 60%, about 3 s left"
+    total += 0.3 * (8.0 / 0.6 - total)
+    assert gi.seconds_left() == pytest.approx(total - 8.0)
+
+
+def test_a_slow_machine_hears_minutes():
+    clock = Clock(0.05)
+    gi = _previewed(clock)
+    assert _frame(gi, clock, 30.0) == "refining 5%, about 10 min left"   # 570 s
+
+
+@pytest.mark.parametrize("seconds, words", [
+    (None, "estimating the time left"), (0.0, "less than 1 s left"), (0.99, "less than 1 s left"),
+    (1.0, "about 1 s left"), (6.4, "about 6 s left"), (9.6, "about 10 s left"),
+    (12.4, "about 10 s left"), (47.0, "about 45 s left"), (87.4, "about 85 s left"),
+    (88.0, "about 2 min left"), (150.0, "about 3 min left"), (5399.0, "about 90 min left"),
+    (7200.0, "about 2 h left")])
+def test_time_left_words_are_rounded_coarsely(seconds, words):
+    assert time_left_words(seconds) == words

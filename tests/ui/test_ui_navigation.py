@@ -109,7 +109,7 @@ def test_scan_floor_finds_the_floor_under_noise_and_strays():
     pts, nrm = _room()
     assert scan_floor(pts, nrm) == pytest.approx(-1.3, abs=0.01)
     assert scan_floor(pts) == pytest.approx(-1.3, abs=0.02)       # without normals
-    assert scan_floor(pts, -nrm) == pytest.approx(-1.3, abs=0.01)  # normals flipped (photogrammetry)
+    assert scan_floor(pts, -nrm) == pytest.approx(-1.3, abs=0.01)   # flipped (photogrammetry)
     assert scan_floor(pts[:5]) is None
     pts[::50] = np.nan                                              # holes are ignored
     assert scan_floor(pts, nrm) == pytest.approx(-1.3, abs=0.01)

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.errors import ScanlightError
+from app.io.limits import MAX_CAMERA_PIXELS, MAX_CAMERA_SIDE
+from app.io.schema import Fields
 
 
 @dataclass
@@ -83,54 +85,34 @@ def parse_size(text, minimum: int = 1) -> tuple[int, int]:
     if not m:
         raise UsageError(None, f"--size must look like 640x480, got {text!r}")
     w, h = int(m.group(1)), int(m.group(2))
-    if not (minimum <= w <= 16384 and minimum <= h <= 16384):
-        raise UsageError(None, f"--size must be between {minimum}x{minimum} and 16384x16384, "
-                               f"got {text!r}")
+    if not (minimum <= w <= MAX_CAMERA_SIDE and minimum <= h <= MAX_CAMERA_SIDE):
+        raise UsageError(None, f"--size must be between {minimum}x{minimum} and "
+                               f"{MAX_CAMERA_SIDE}x{MAX_CAMERA_SIDE}, got {text!r}")
     return w, h
 
 
-MAX_PIXELS = 8192 * 8192   # a camera's image: 64 Mpixel (a float RGBA image of it is 1 GiB)
-MAX_COORD = 1e9            # metres: beyond this a position is a typo, and squares overflow
+MAX_PIXELS = MAX_CAMERA_PIXELS   # re-exported: render --size and the viewer check against it
+CAMERA_KEYS = ("position", "look_at", "up", "fov_y_deg", "width", "height", "name")
 
 
-def _number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _vec3(d: dict, key: str, source, default=None) -> np.ndarray:
-    val = d.get(key, default)
-    if val is None:
-        raise ScanlightError(source, f"camera is missing {key!r}")
-    if not (isinstance(val, (list, tuple)) and len(val) == 3 and all(_number(v) for v in val)):
-        raise ScanlightError(source, f"camera {key!r} must be 3 numbers, got {val!r}")
-    arr = np.asarray(val, dtype=np.float64)
-    if not np.isfinite(arr).all() or np.abs(arr).max() > MAX_COORD:
-        raise ScanlightError(source, f"camera {key!r} must be 3 finite numbers within "
-                                     f"{MAX_COORD:g} m of the origin, got {val!r}")
-    return arr
-
-
-def camera_from_dict(d: dict, source=None) -> Camera:
-    if not isinstance(d, dict):
-        raise ScanlightError(source, "a camera must be a JSON object")
-    pos, at = _vec3(d, "position", source), _vec3(d, "look_at", source)
-    up = _vec3(d, "up", source, [0, 1, 0])
+def camera_from_dict(d: dict, source=None, what: str = "camera") -> Camera:
+    """A camera from its JSON object, every field typed (app.io.schema) and limited
+    (app.io.limits): positions within MAX_COORD, at most MAX_CAMERA_PIXELS pixels."""
+    f = Fields(d, what, source, CAMERA_KEYS)
+    pos, at = np.asarray(f.vec3("position")), np.asarray(f.vec3("look_at"))
+    up = np.asarray(f.vec3("up", (0.0, 1.0, 0.0)))
+    f.string("name", "")
     if np.linalg.norm(at - pos) < 1e-9:
-        raise ScanlightError(source, "camera 'look_at' equals 'position'")
-    fov = d.get("fov_y_deg", 45.0)
-    if not _number(fov) or not 0.1 <= fov <= 179:
-        raise ScanlightError(source, f"camera 'fov_y_deg' must be a number in [0.1, 179], "
-                                     f"got {fov!r}")
-    w, h = d.get("width", 128), d.get("height", 128)
-    for key, v in (("width", w), ("height", h)):
-        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 16384:
-            raise ScanlightError(source, f"camera {key!r} must be an integer in [1, 16384], got {v!r}")
+        raise ScanlightError(source, f"{what} 'look_at' equals 'position'")
+    fov = f.number("fov_y_deg", 45.0, 0.1, 179.0, "degrees")
+    w = f.integer("width", 128, 1, MAX_CAMERA_SIDE)
+    h = f.integer("height", 128, 1, MAX_CAMERA_SIDE)
     if w * h > MAX_PIXELS:
-        raise ScanlightError(source, f"camera image {w}x{h} is larger than the limit of "
+        raise ScanlightError(source, f"{what} image {w}x{h} is larger than the limit of "
                                      f"{MAX_PIXELS:,} pixels (8192x8192)")
     up_dir = np.cross(at - pos, up)
     if np.linalg.norm(up_dir) < 1e-12 * np.linalg.norm(at - pos) * np.linalg.norm(up):
-        raise ScanlightError(source, "camera 'up' is parallel to the viewing direction")
+        raise ScanlightError(source, f"{what} 'up' is parallel to the viewing direction")
     return Camera(pos, at, up, float(fov), w, h)
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, fields, make_dataclass
 import numpy as np
 
 from app.errors import ScanlightError
+from app.io.schema import Fields, number_value, vec3_value
 
 
 @dataclass(frozen=True)
@@ -91,36 +92,24 @@ PRESETS: dict[str, dict] = {
 }
 
 
-def _is_number(v) -> bool:
-    """A JSON number: not a string ("123" is not 123) and not a boolean (true is not 1)."""
-    return isinstance(v, (int, float, np.number)) and not isinstance(v, (bool, np.bool_))
-
-
 def set_param(mat: Material, key: str, val, source: str | None = None) -> None:
+    """Set one parameter from a JSON (or UI) value: typed strictly (app.io.schema: ``"123"`` is
+    not a colour, ``true`` is not 1), then clamped to the parameter's range."""
     if key == "base_color":
-        ok = (isinstance(val, (list, tuple, np.ndarray)) and len(val) == 3
-              and all(_is_number(v) for v in val))
-        rgb = [float(v) for v in val] if ok else []
-        if len(rgb) != 3 or not all(np.isfinite(rgb)):
-            raise ScanlightError(source, f"material 'base_color' must be 3 finite numbers, got {val!r}")
+        rgb = vec3_value(val, "material 'base_color'", source, limit=None)
         mat.base_color = tuple(float(np.clip(v, 0.0, 1.0)) for v in rgb)
         return
     spec = next((p for p in SCALAR_PARAMS if p.name == key), None)
     if spec is None:
         raise ScanlightError(source, f"unknown material parameter {key!r} "
                                      f"(known: {', '.join(ALL_NAMES)})")
-    if not _is_number(val):
-        raise ScanlightError(source, f"material {key!r} must be a number, got {val!r}")
-    v = float(val)
-    if not np.isfinite(v):
-        raise ScanlightError(source, f"material {key!r} must be finite, got {val!r}")
+    v = number_value(val, f"material {key!r}", source)
     setattr(mat, key, float(np.clip(v, spec.lo, spec.hi)))
 
 
 def material_from_dict(d: dict, source: str | None = None) -> Material:
-    if not isinstance(d, dict):
-        raise ScanlightError(source, "a material must be a JSON object")
-    mat = Material(name=str(d.get("name", "material")))
+    f = Fields(d, "material", source)
+    mat = Material(name=f.string("name", "material"))
     for key, val in d.items():
         if key == "name":
             continue

@@ -113,7 +113,10 @@ class Param:
                                          f"got {value!r}")
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
             raise ScanlightError(source, f"{what} must be a number, got {value!r}")
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:     # a JSON integer of 400 digits
+            v = math.inf
         if not math.isfinite(v):
             raise ScanlightError(source, f"{what} must be finite, got {value!r}")
         if self.kind == "int" and v != int(v):

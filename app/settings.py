@@ -17,7 +17,6 @@ materials, the view camera) report their changes through the same change set und
 from __future__ import annotations
 
 import json
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,8 +24,10 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from app.camera import MAX_COORD, Camera, camera_from_dict
+from app.camera import Camera, camera_from_dict
 from app.errors import ScanlightError
+from app.io.limits import OBJECT_SCALE
+from app.io.schema import Fields, show
 from app.material import Material, material_from_dict
 from app.params import BY_KEY, PARAMS, REDO
 
@@ -285,76 +286,44 @@ def _rel(value: str | None, base: Path | None) -> str | None:
         return str(value)
 
 
-def _abs(value, base: Path, key: str, source) -> str | None:
-    if value is None:
-        return None
-    if not isinstance(value, str) or not value:
-        raise ScanlightError(source, f"session 'files.{key}' must be a path string, got {value!r}")
-    if value == "demo" or value in BUILTIN_ASSETS:
+def _abs(files: Fields, key: str, base: Path, default=None) -> str | None:
+    value = files.path(key, default) if files.d.get(key) is not None else default
+    if value is None or value == "demo" or value in BUILTIN_ASSETS:
         return value
     p = Path(value)
     return str(p if p.is_absolute() else (base / p))
 
 
-def _vec3(v, what: str, source) -> tuple[float, float, float]:
-    """3 JSON numbers (not strings, not booleans) within MAX_COORD of the origin."""
-    ok = isinstance(v, (list, tuple)) and len(v) == 3 and all(
-        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
-    a = np.asarray(v, dtype=np.float64) if ok else np.zeros(0)
-    if a.shape != (3,) or not np.isfinite(a).all() or np.abs(a).max() > MAX_COORD:
-        raise ScanlightError(source, f"session {what} must be 3 finite numbers within "
-                                     f"{MAX_COORD:g} m, got {v!r}")
-    return tuple(float(x) for x in a)
-
-
 def session_from_dict(d: dict, base: Path, source=None) -> Session:
+    """A session from its JSON object, every part typed (app.io.schema): paths are strings,
+    vectors 3 numbers within MAX_COORD, names strings; settings go through their Param (typed,
+    then clamped as the viewer's sliders clamp)."""
     if not isinstance(d, dict) or "scanlight_session" not in d:
         raise ScanlightError(source, "not a Scanlight session (no 'scanlight_session' key)")
     if d["scanlight_session"] != SESSION_VERSION:
-        raise ScanlightError(source, f"session version {d['scanlight_session']!r} is not "
+        raise ScanlightError(source, f"session version {show(d['scanlight_session'])} is not "
                                      f"supported (this build reads version {SESSION_VERSION})")
-    files = d.get("files") or {}
-    if not isinstance(files, dict):
-        raise ScanlightError(source, "session 'files' must be an object")
-    s = Session(cloud=_abs(files.get("cloud", "demo"), base, "cloud", source) or "demo",
-                photo=_abs(files.get("photo"), base, "photo", source),
-                hdr_cloud=_abs(files.get("hdr_cloud"), base, "hdr_cloud", source),
-                asset=_abs(files.get("asset", "sphere"), base, "asset", source) or "sphere")
-    cams = d.get("capture_cameras") or []
-    if not isinstance(cams, list):
-        raise ScanlightError(source, "session 'capture_cameras' must be a list")
-    for i, c in enumerate(cams):
-        if not isinstance(c, dict):
-            raise ScanlightError(source, f"capture camera {i} must be an object")
-        name = c.get("name", f"capture {i + 1}")
-        if not isinstance(name, str):
-            raise ScanlightError(source, f"capture camera {i} 'name' must be a string, "
-                                         f"got {name!r}")
-        s.capture_cameras.append(CaptureCamera(name,
-                                               _vec3(c.get("position"), f"capture camera {i} "
-                                                     "'position'", source)))
-    t = d.get("asset_transform") or {}
-    if not isinstance(t, dict):
-        raise ScanlightError(source, "session 'asset_transform' must be an object")
-    scale = t.get("scale", 0.8)
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (
-            math.isfinite(scale) and scale > 0):
-        raise ScanlightError(source, f"session asset scale must be a positive number, "
-                                     f"got {scale!r}")
-    s.transform = AssetTransform(
-        _vec3(t.get("translate", (0, 0.6, 0)), "asset 'translate'", source),
-        _vec3(t.get("rotate_deg", (0, 0, 0)), "asset 'rotate_deg'", source), float(scale))
-    mats = d.get("materials")
+    top = Fields(d, "session", source)
+    files = Fields(top.optional("files", dict, {}), "session 'files'", source,
+                   ("cloud", "photo", "hdr_cloud", "asset"))
+    s = Session(cloud=_abs(files, "cloud", base, "demo"), photo=_abs(files, "photo", base),
+                hdr_cloud=_abs(files, "hdr_cloud", base), asset=_abs(files, "asset", base, "sphere"))
+    for i, c in enumerate(top.optional("capture_cameras", list, [])):
+        cam = Fields(c, f"session capture camera {i}", source, ("name", "position"))
+        s.capture_cameras.append(CaptureCamera(cam.string("name", f"capture {i + 1}"),
+                                               cam.vec3("position")))
+    t = Fields(top.optional("asset_transform", dict, {}), "session 'asset_transform'", source,
+               ("translate", "rotate_deg", "scale"))
+    s.transform = AssetTransform(t.vec3("translate", (0.0, 0.6, 0.0)),
+                                 t.vec3("rotate_deg", (0.0, 0.0, 0.0), limit=None),
+                                 t.number("scale", 0.8, *OBJECT_SCALE))
+    mats = top.optional("materials", list)
     if mats is not None:
-        if not isinstance(mats, list):
-            raise ScanlightError(source, "session 'materials' must be a list or null")
         s.materials = [material_from_dict(m, source) for m in mats]
-    if d.get("camera") is not None:
-        s.camera = camera_from_dict(d["camera"], source)
-    values = d.get("settings") or {}
-    if not isinstance(values, dict):
-        raise ScanlightError(source, "session 'settings' must be an object")
-    s.settings = Settings(values, source)
+    cam = top.optional("camera", dict)
+    if cam is not None:
+        s.camera = camera_from_dict(cam, source, "session 'camera'")
+    s.settings = Settings(top.optional("settings", dict, {}), source)
     if "mode" in d:
         s.settings.set("pbgi.mode", d["mode"], source)
     s.settings.take_changes()  # a fresh session has nothing "changed"

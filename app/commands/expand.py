@@ -19,7 +19,6 @@ report.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -53,10 +52,11 @@ def expand_params(args):
     values = param_values(args, "expand")
     extra = {}
     if args.params:
-        try:
-            extra = json.loads(args.params)
-        except json.JSONDecodeError as exc:
-            raise UsageError(None, f"--params is not valid JSON ({exc})") from None
+        from app.io.schema import parse_json
+        try:   # the one parser of JSON inputs, with its depth limit (app/io/schema.py)
+            extra = parse_json(args.params, None, "JSON")
+        except ScanlightError as err:
+            raise UsageError(None, f"--params is {err.reason}") from None
         if not isinstance(extra, dict):
             raise UsageError(None, "--params must be a JSON object")
     # merged by field name: --params may name a field ("neighbours") or its key ("hdr.neighbours")

@@ -15,16 +15,19 @@ from pathlib import Path
 
 import numpy as np
 
-from app.camera import MAX_COORD, camera_from_dict
+from app.camera import Camera, camera_from_dict
 from app.errors import ScanlightError
 from app.hdr.pipeline import ExpandParams, Expansion, run_expansion
 from app.io.files import read_json, require_file, write_json
+from app.io.limits import MAX_CAPTURE_PIXELS
+from app.io.schema import Fields, vec3_value
 
 
 def load_cameras(path) -> list:
     """Capture cameras from JSON: a list of ``{"position": [x, y, z]}`` (an axis-aligned cube
     map there) or full camera objects (with ``look_at``: one rendering with that camera);
-    ``{"cameras": [...]}`` and a single object are accepted too."""
+    ``{"cameras": [...]}`` and a single object are accepted too. Every field is typed
+    (app.io.schema); positions lie within MAX_COORD, camera images within MAX_CAMERA_PIXELS."""
     p = require_file(path, "cameras", (".json",))
     data = read_json(p, "cameras")
     if isinstance(data, dict):
@@ -33,22 +36,28 @@ def load_cameras(path) -> list:
         raise ScanlightError(p, "expected a non-empty list of cameras")
     out = []
     for i, d in enumerate(data):
+        what = f"capture camera {i}"
         if isinstance(d, (list, tuple)):
-            d = {"position": d}
-        if not isinstance(d, dict):
-            raise ScanlightError(p, f"camera {i}: expected an object with 'position'")
-        if "look_at" in d:
-            out.append(camera_from_dict(d, f"{p} (camera {i})"))
-            continue
-        pos = d.get("position")
-        numbers = (isinstance(pos, (list, tuple)) and len(pos) == 3 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in pos))
-        arr = np.asarray(pos, dtype=np.float64) if numbers else np.zeros(0)
-        if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.abs(arr).max() > MAX_COORD:
-            raise ScanlightError(p, f"camera {i}: 'position' must be 3 finite numbers within "
-                                    f"{MAX_COORD:g} m of the origin, got {pos!r}")
-        out.append(arr)
+            out.append(np.asarray(vec3_value(d, what, p)))
+        elif isinstance(d, dict) and "look_at" in d:
+            out.append(camera_from_dict(d, p, what))
+        else:
+            f = Fields(d, what, p, ("position", "name"))
+            f.string("name", "")
+            out.append(np.asarray(f.vec3("position")))
     return out
+
+
+def check_capture_size(cams, face_size: int, source=None) -> None:
+    """All capture images of one expansion together (a cube map is six faces of ``face_size``
+    squared; a camera its own image) within MAX_CAPTURE_PIXELS, before anything is rendered."""
+    total = sum(c.width * c.height if isinstance(c, Camera) else 6 * face_size ** 2
+                for c in (cams or ()))
+    if total > MAX_CAPTURE_PIXELS:
+        raise ScanlightError(source, f"{len(cams)} capture camera(s) at face size {face_size} "
+                                     f"make {total:,} capture pixels, more than the limit of "
+                                     f"{MAX_CAPTURE_PIXELS:,} (fewer cameras or a smaller "
+                                     "--face-size)")
 
 
 @dataclass(frozen=True)
@@ -116,6 +125,7 @@ def run_expand_request(req: ExpandRequest, progress=None, cancel=None) -> Expans
     if isinstance(cams, (str, Path)):
         names["cameras"] = str(cams)
         cams = load_cameras(cams)
+    check_capture_size(cams, req.params.face_size, names.get("cameras"))
     res = run_expansion(cloud, photo, cams, params=req.params, progress=progress, cancel=cancel,
                         names=names)
     res.report["warnings"][:0] = photo_warnings
@@ -130,4 +140,4 @@ def run_expand_request(req: ExpandRequest, progress=None, cancel=None) -> Expans
     return res
 
 
-__all__ = ["ExpandRequest", "load_cameras", "run_expand_request"]
+__all__ = ["ExpandRequest", "check_capture_size", "load_cameras", "run_expand_request"]

@@ -59,17 +59,21 @@ def atomic_output(path):
 
 
 def read_json(path, kind: str):
-    """Parsed JSON of a ``kind`` file (camera, material, object, session...), or one error line."""
-    import json
+    """Parsed JSON of a ``kind`` file (camera, material, object, session...), or one error line
+    (app.io.schema.parse_json: invalid, or nested too deep; larger than
+    MAX_JSON_BYTES; unreadable)."""
+    from app.io.limits import MAX_JSON_BYTES
+    from app.io.schema import parse_json
     p = require_file(path, kind)
+    size = p.stat().st_size
+    if size > MAX_JSON_BYTES:
+        raise ScanlightError(p, f"{kind} file of {size:,} bytes is larger than the limit of "
+                                f"{MAX_JSON_BYTES:,} for a JSON file")
     try:
-        return json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScanlightError(p, f"not valid JSON ({exc})") from None
-    except RecursionError:
-        raise ScanlightError(p, "JSON nested too deeply to be a Scanlight file") from None
+        data = p.read_bytes()
     except PermissionError:
-        raise ScanlightError(p, "cannot read the file (permission denied)") from None
+        raise ScanlightError(p, f"cannot read the {kind} file (permission denied)") from None
+    return parse_json(data, p, "JSON")
 
 
 def jsonable(obj):

@@ -15,16 +15,16 @@ i.e. R = Rz @ Ry @ Rx (right-handed, counter-clockwise looking down each axis); 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from app.camera import MAX_COORD
 from app.errors import ScanlightError
 from app.io.files import read_json, require_file
+from app.io.limits import OBJECT_SCALE
 from app.io.mesh import MESH_EXTENSIONS, Mesh, load_mesh, make_sphere_mesh, transform_mesh
+from app.io.schema import Fields
 
 SPHERE = "sphere"
 BUILTIN_MESHES = (SPHERE, "knot")  # the demo's sphere and its procedural non-convex asset
@@ -50,35 +50,12 @@ class ObjectSpec:
     source: str | None = None
 
 
-def _number(v) -> float | None:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        return None
-    return float(v)
-
-
-def _vec3(d: dict, key: str, source) -> tuple[float, float, float]:
-    v = d[key]
-    vals = [_number(x) for x in v] if isinstance(v, list) else []
-    if len(vals) != 3 or any(x is None for x in vals):
-        raise ScanlightError(source, f"object {key!r} must be a list of 3 finite numbers, "
-                                     f"got {v!r}")
-    return tuple(vals)
-
-
 def object_from_dict(d, base_dir, source=None) -> ObjectSpec:
     """Validate a parsed object JSON; a relative mesh path is resolved against ``base_dir``."""
-    if not isinstance(d, dict):
-        raise ScanlightError(source, "an object file must hold a JSON object {...}")
-    unknown = sorted(set(d) - set(OBJECT_KEYS))
-    if unknown:
-        raise ScanlightError(source, f"unknown object key(s) {', '.join(map(repr, unknown))} "
-                                     f"(known: {', '.join(OBJECT_KEYS)})")
-    if "mesh" not in d:
+    f = Fields(d, "object", source, OBJECT_KEYS)
+    if "mesh" not in f:
         raise ScanlightError(source, "object has no 'mesh' key (a mesh file path or \"sphere\" or \"knot\")")
-    mesh = d["mesh"]
-    if not isinstance(mesh, str) or not mesh.strip():
-        raise ScanlightError(source, f"object 'mesh' must be a file path or \"sphere\" (or \"knot\"), "
-                                     f"got {mesh!r}")
+    mesh = f.path("mesh", alternatives=' or "sphere" (or "knot")')
     if mesh not in BUILTIN_MESHES:
         p = Path(mesh)
         p = (Path(base_dir) / p if not p.is_absolute() else p).resolve()
@@ -89,17 +66,9 @@ def object_from_dict(d, base_dir, source=None) -> ObjectSpec:
         if not p.is_file():
             raise ScanlightError(source, f"object mesh file {mesh!r} not found (looked at {p})")
         mesh = str(p)
-    scale = 1.0
-    if "scale" in d:
-        scale = _number(d["scale"])
-        if scale is None or not 1e-6 <= scale <= 1e6:
-            raise ScanlightError(source, f"object 'scale' must be a number in [1e-6, 1e6], "
-                                         f"got {d['scale']!r}")
-    translate = _vec3(d, "translate", source) if "translate" in d else (0.0, 0.0, 0.0)
-    if max(abs(v) for v in translate) > MAX_COORD:
-        raise ScanlightError(source, f"object 'translate' must be within {MAX_COORD:g} m of the "
-                                     f"origin, got {list(translate)!r}")
-    rotate = _vec3(d, "rotate_deg", source) if "rotate_deg" in d else (0.0, 0.0, 0.0)
+    scale = f.number("scale", 1.0, *OBJECT_SCALE)
+    translate = f.vec3("translate", (0.0, 0.0, 0.0))
+    rotate = f.vec3("rotate_deg", (0.0, 0.0, 0.0), limit=None)
     return ObjectSpec(mesh, translate, scale, rotate, None if source is None else str(source))
 
 

@@ -9,6 +9,7 @@ FreeImage download, Pillow cannot read it), and OpenEXR covers the same use.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from app.color import srgb_to_linear
 from app.errors import ScanlightError
 from app.io.clean import HALF_MAX, clean_rgb, describe_counts
 from app.io.files import atomic_output, require_file
+from app.io.limits import MAX_IMAGE_PIXELS
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +72,6 @@ def _pick_rgb(channels: dict, path: Path) -> np.ndarray:
     return np.stack([np.asarray(p, dtype=np.float32) for p in planes], axis=-1)
 
 
-MAX_IMAGE_PIXELS = 150_000_000   # photos: a 150-Mpixel image is 1.8 GB as linear float RGB
 
 
 def _check_pixels(p: Path, width: int, height: int) -> None:
@@ -86,8 +87,15 @@ def read_exr(path) -> LinearImage:
 
     try:   # the size first, from the header alone: nothing is allocated for a huge image
         with OpenEXR.File(str(p), header_only=True) as f:
-            lo, hi = f.header()["dataWindow"]
-        _check_pixels(p, int(hi[0]) - int(lo[0]) + 1, int(hi[1]) - int(lo[1]) + 1)
+            windows = [part.header["dataWindow"] for part in f.parts]
+        # every part is decoded when the file is opened, so all of them count
+        sizes = [(int(hi[0]) - int(lo[0]) + 1, int(hi[1]) - int(lo[1]) + 1) for lo, hi in windows]
+        if len(sizes) == 1:
+            _check_pixels(p, *sizes[0])
+        elif sum(w * h for w, h in sizes) > MAX_IMAGE_PIXELS:
+            raise ScanlightError(p, f"EXR of {len(sizes)} parts holds "
+                                    f"{sum(w * h for w, h in sizes):,} pixels, more than the "
+                                    f"limit of {MAX_IMAGE_PIXELS:,}")
     except ScanlightError:
         raise
     except Exception as exc:  # OpenEXR raises RuntimeError/ValueError for corrupt files
@@ -144,16 +152,21 @@ def read_ldr(path) -> LinearImage:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(p) as im:
-            _check_pixels(p, *im.size)      # from the header, before decoding
-            im.load()
-            if im.mode.startswith("I;16") or im.mode == "I":
-                v = np.asarray(im, dtype=np.float32) / 65535.0
-                enc = np.repeat(np.clip(v, 0.0, 1.0)[..., None], 3, axis=-1)
-            else:
-                enc = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
-    except Image.DecompressionBombError as exc:
-        raise ScanlightError(p, f"image too large ({exc})") from None
+        with warnings.catch_warnings():
+            # Pillow's own bomb check warns above 89 Mpixel and fails above twice that, on
+            # open: ours (MAX_IMAGE_PIXELS, from the header) is the one that applies
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(p) as im:
+                _check_pixels(p, *im.size)      # from the header, before decoding
+                im.load()
+                if im.mode.startswith("I;16") or im.mode == "I":
+                    v = np.asarray(im, dtype=np.float32) / 65535.0
+                    enc = np.repeat(np.clip(v, 0.0, 1.0)[..., None], 3, axis=-1)
+                else:
+                    enc = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+    except Image.DecompressionBombError:
+        raise ScanlightError(p, f"image too large: more than the limit of "
+                                f"{MAX_IMAGE_PIXELS:,} pixels (a decompression bomb?)") from None
     except (OSError, UnidentifiedImageError, SyntaxError, ValueError) as exc:
         raise ScanlightError(p, f"corrupt or truncated image ({exc})") from None
     return _finish(srgb_to_linear(enc), False, p, {})

@@ -16,10 +16,10 @@ from UVs); primitives without NORMAL get flat normals, as the glTF spec requires
 from __future__ import annotations
 
 import base64
-import json
 import logging
 import struct
 import urllib.parse
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +27,9 @@ import numpy as np
 
 from app.color import srgb_to_linear
 from app.errors import ScanlightError
+from app.io.limits import (MAX_GLTF_DEPTH, MAX_GLTF_INSTANCES, MAX_MESH_VERTICES,
+                            MAX_TEXTURE_PIXELS)
+from app.io.schema import parse_json, show
 from app.material import Material
 
 log = logging.getLogger(__name__)
@@ -35,9 +38,8 @@ _COMPONENT = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: 
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _TRIANGLES, _STRIP, _FAN = 4, 5, 6
 _DRACO = "KHR_draco_mesh_compression"
-_MAX_DEPTH = 64  # node hierarchy depth; deeper means a cycle
-MAX_INSTANCES = 100_000  # node instances a scene may expand to (a node shared by two parents
-#                          is drawn twice; forty levels of that would be 2^40 copies)
+MAX_INSTANCES = MAX_GLTF_INSTANCES   # app.io.limits: a node shared by two parents is drawn
+#                                     twice; forty levels of that would be 2^40 copies
 
 
 @dataclass
@@ -106,10 +108,7 @@ class _Reader:
         return doc, buffers
 
     def _json(self, raw: bytes):
-        try:
-            return json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ScanlightError(self.path, f"corrupt glTF JSON ({exc})") from None
+        return parse_json(raw, self.path, "glTF JSON", invalid="corrupt glTF JSON")
 
     def _uri_bytes(self, uri: str, what: str, required: bool) -> bytes | None:
         if uri.startswith("data:"):
@@ -143,9 +142,12 @@ class _Reader:
         try:
             a = self.doc["accessors"][index]
             comp = np.dtype("<" + _COMPONENT[a["componentType"]])
-            width, count = _WIDTH[a["type"]], int(a["count"])
+            width, count = _WIDTH[a["type"]], self._declared_count(index)
         except (KeyError, IndexError, TypeError):
-            raise ScanlightError(self.path, f"corrupt glTF: bad accessor {index}") from None
+            raise ScanlightError(self.path, f"corrupt glTF: bad accessor {show(index)}") from None
+        if "bufferView" not in a and count > MAX_MESH_VERTICES:   # zeros, nothing to bound it
+            raise ScanlightError(self.path, f"accessor {index} declares {count:,} elements, "
+                                            f"more than the limit of {MAX_MESH_VERTICES:,}")
         if "bufferView" in a:
             buf, view_off, length, stride = self.view_bytes(a["bufferView"])
             off = view_off + a.get("byteOffset", 0)
@@ -293,45 +295,51 @@ class _Reader:
         else:  # no scene: every node that is nobody's child
             children = {c for n in nodes for c in n.get("children", [])}
             roots = [i for i in range(len(nodes)) if i not in children]
-        self._check_instances(nodes, roots)
-        stack = [(r, np.eye(4), 0) for r in roots]
+        self._check_graph(nodes, roots)
+        stack = [(r, np.eye(4)) for r in roots]
         while stack:
-            ni, parent, depth = stack.pop()
-            if depth > _MAX_DEPTH:
-                raise ScanlightError(self.path, "corrupt glTF: node hierarchy has a cycle")
-            try:
-                node = nodes[ni]
-            except (IndexError, TypeError):
-                raise ScanlightError(self.path, f"corrupt glTF: node {ni} does not exist") from None
+            ni, parent = stack.pop()
+            node = nodes[ni]
             world = parent @ _local_matrix(node)
-            stack.extend((c, world, depth + 1) for c in node.get("children", []))
+            stack.extend((c, world) for c in node.get("children", []))
             if "mesh" in node:
                 for k, prim in enumerate(doc["meshes"][node["mesh"]]["primitives"]):
                     out = self._primitive(prim, world, f"mesh {node['mesh']} primitive {k}")
                     if out is not None:
                         yield out, prim.get("material")
 
-    def _check_instances(self, nodes, roots) -> None:
-        """Count the node instances the scene expands to, before expanding it: each node's
-        count once, from its children's (memoised, so a shared subtree costs one visit), with
-        cycles and dangling indices refused. A tree (what the glTF spec requires) has one
-        instance per node; a file whose nodes share children could otherwise take forever."""
-        count: dict[int, int] = {}
+    def _children(self, nodes, i) -> list:
+        try:
+            kids = nodes[i].get("children", [])
+        except (IndexError, TypeError, AttributeError):
+            raise ScanlightError(self.path, f"corrupt glTF: node {show(i)} does not "
+                                            "exist") from None
+        if not isinstance(kids, list) or not all(isinstance(c, int) and not isinstance(
+                c, bool) and c >= 0 for c in kids):
+            raise ScanlightError(self.path, f"corrupt glTF: node {i} children must be a "
+                                            "list of node indices")
+        return kids
+
+    def _check_graph(self, nodes, roots) -> None:
+        """The node graph, checked before it is expanded: no cycle and no dangling index, at
+        most MAX_GLTF_DEPTH levels, at most MAX_GLTF_INSTANCES node instances, and at most
+        MAX_MESH_VERTICES vertices over all instanced primitives (from the accessors' declared
+        counts). A tree (what the glTF spec requires) has one instance per node; a file whose
+        nodes share children would otherwise expand exponentially. Each node is visited once
+        (its subtree's instance count and height memoised), so a shared subtree costs one visit."""
+        if not isinstance(roots, list) or not all(
+                isinstance(r, int) and not isinstance(r, bool) and 0 <= r < len(nodes)
+                for r in roots):
+            raise ScanlightError(self.path, f"corrupt glTF: scene nodes must be a list of node "
+                                            f"indices, got {show(roots)}")
+        count: dict[int, int] = {}          # instances in the node's subtree
+        height: dict[int, int] = {}         # levels in the node's subtree
         state: dict[int, int] = {}          # 1 = being counted (on the current path), 2 = done
-
-        def children(i):
-            try:
-                kids = nodes[i].get("children", [])
-            except (IndexError, TypeError, AttributeError):
-                raise ScanlightError(self.path, f"corrupt glTF: node {i} does not exist") from None
-            if not isinstance(kids, list) or not all(isinstance(c, int) and not isinstance(
-                    c, bool) for c in kids):
-                raise ScanlightError(self.path, f"corrupt glTF: node {i} children must be a "
-                                                "list of node indices")
-            return kids
-
+        order: list[int] = []               # post-order: children before parents
         for root in roots:
-            stack = [(root, iter(children(root)))]
+            if state.get(root) == 2:
+                continue
+            stack = [(root, iter(self._children(nodes, root)))]
             state[root] = 1
             while stack:
                 node, it = stack[-1]
@@ -339,20 +347,66 @@ class _Reader:
                 if nxt is None:
                     stack.pop()
                     state[node] = 2
-                    count[node] = 1 + sum(count[c] for c in children(node))
-                    if count[node] > MAX_INSTANCES:
+                    order.append(node)
+                    kids = nodes[node].get("children", [])
+                    count[node] = 1 + sum(count[c] for c in kids)
+                    height[node] = 1 + max((height[c] for c in kids), default=0)
+                    if height[node] > MAX_GLTF_DEPTH:
+                        raise ScanlightError(self.path, f"the node hierarchy is deeper than "
+                                                        f"{MAX_GLTF_DEPTH} levels")
+                    if count[node] > MAX_GLTF_INSTANCES:
                         raise ScanlightError(self.path, f"the node graph expands to more than "
-                                                        f"{MAX_INSTANCES:,} instances (nodes "
+                                                        f"{MAX_GLTF_INSTANCES:,} instances (nodes "
                                                         "shared by several parents)")
                 elif state.get(nxt) == 1:
                     raise ScanlightError(self.path, "corrupt glTF: node hierarchy has a cycle")
                 elif state.get(nxt) != 2:
                     state[nxt] = 1
-                    stack.append((nxt, iter(children(nxt))))
-        total = sum(count.get(r, 0) for r in roots)
-        if total > MAX_INSTANCES:
+                    stack.append((nxt, iter(self._children(nodes, nxt))))
+        total = sum(count[r] for r in roots)
+        if total > MAX_GLTF_INSTANCES:
             raise ScanlightError(self.path, f"the scene expands to {total:,} node instances "
-                                            f"(limit {MAX_INSTANCES:,})")
+                                            f"(limit {MAX_GLTF_INSTANCES:,})")
+        # instances of each node (parents before children: reversed post-order)
+        mult = dict.fromkeys(order, 0)
+        for r in roots:
+            mult[r] += 1
+        for node in reversed(order):
+            for c in nodes[node].get("children", []):
+                mult[c] += mult[node]
+        vertices = sum(m * self._mesh_vertices(nodes[n]["mesh"]) for n, m in mult.items()
+                       if m and "mesh" in nodes[n])
+        if vertices > MAX_MESH_VERTICES:
+            raise ScanlightError(self.path, f"the scene's primitives hold {vertices:,} vertices "
+                                            f"once instanced, more than the limit of "
+                                            f"{MAX_MESH_VERTICES:,}")
+
+    def _declared_count(self, index) -> int:
+        """An accessor's declared ``count`` (a whole number >= 0), before reading it."""
+        try:
+            n = self.doc["accessors"][index]["count"]
+        except (KeyError, IndexError, TypeError):
+            raise ScanlightError(self.path, f"corrupt glTF: bad accessor {show(index)}") from None
+        if not isinstance(n, int) or isinstance(n, bool) or n < 0:
+            raise ScanlightError(self.path, f"corrupt glTF: accessor {index} count must be a "
+                                            f"whole number >= 0, got {show(n)}")
+        return n
+
+    def _mesh_vertices(self, mesh) -> int:
+        """Vertices (or indices, when more) a mesh's triangle primitives declare."""
+        try:
+            prims = self.doc["meshes"][mesh]["primitives"]
+        except (KeyError, IndexError, TypeError):
+            raise ScanlightError(self.path, f"corrupt glTF: mesh {show(mesh)} does not "
+                                            "exist") from None
+        total = 0
+        for prim in prims if isinstance(prims, list) else []:
+            attrs = prim.get("attributes", {}) if isinstance(prim, dict) else {}
+            n = self._declared_count(attrs["POSITION"]) if "POSITION" in attrs else 0
+            if "indices" in prim:
+                n = max(n, self._declared_count(prim["indices"]))
+            total += n
+        return total
 
     def _primitive(self, prim: dict, world: np.ndarray, label: str) -> Primitive | None:
         mode = prim.get("mode", _TRIANGLES)
@@ -420,16 +474,22 @@ def _triangles(flat: np.ndarray, mode: int) -> np.ndarray:
 
 
 def decode_texture(blob: bytes, kind: str) -> np.ndarray | None:
-    """PNG/JPEG bytes -> float32 (H, W, C), bottom row first; RGB sRGB-decoded for kind "srgb"."""
+    """PNG/JPEG bytes -> float32 (H, W, C), bottom row first; RGB sRGB-decoded for kind "srgb".
+    None when the bytes are no image, or one larger than MAX_TEXTURE_PIXELS (read from its
+    header, nothing decoded); the caller warns."""
     import io
 
     from PIL import Image
 
     try:
-        with Image.open(io.BytesIO(blob)) as im:
-            im.load()
-            mode = "RGBA" if "A" in im.getbands() else "RGB"
-            a = np.asarray(im.convert(mode), dtype=np.float32) / 255.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our limit below
+            with Image.open(io.BytesIO(blob)) as im:
+                if im.size[0] * im.size[1] > MAX_TEXTURE_PIXELS:
+                    return None
+                im.load()
+                mode = "RGBA" if "A" in im.getbands() else "RGB"
+                a = np.asarray(im.convert(mode), dtype=np.float32) / 255.0
     except Exception:  # Pillow raises many types for bad data; the caller warns
         return None
     if kind == "srgb":

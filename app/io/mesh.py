@@ -253,6 +253,7 @@ def load_mesh(path, normalize: bool = False) -> Mesh:
         pos, idx, nrm, uvs, mids, materials = _obj_arrays(p, warn)
     if len(idx) == 0:
         raise ScanlightError(p, "mesh has no faces")
+    _check_finite(p, pos)
     twice_area = np.linalg.norm(face_normals(pos, idx), axis=1)
     if not np.any(np.isfinite(twice_area) & (twice_area > 0)):
         raise ScanlightError(p, f"mesh has no triangle with an area (all {len(idx):,} faces are "
@@ -269,6 +270,15 @@ def load_mesh(path, normalize: bool = False) -> Mesh:
     report["faces"], report["vertices"] = int(len(idx)), int(len(pos))
     report["materials"] = [m.name for m in materials]
     return build_mesh(pos, idx, nrm, uvs, mids, materials, str(p), report)
+
+
+def _check_finite(p: Path, positions: np.ndarray) -> None:
+    """Refuse NaN or infinite vertices (a "nan" or "1e999" in the file, or glTF node transforms
+    that overflow): they would render as nothing, with numpy warnings, instead of an error."""
+    bad = ~np.isfinite(positions).all(axis=1)
+    if bad.any():
+        raise ScanlightError(p, f"mesh has {int(bad.sum()):,} vertices with NaN or infinite "
+                                "coordinates")
 
 
 def _textures(m: Material) -> bool:
@@ -306,6 +316,7 @@ def _gltf_arrays(p: Path, warn):
     parts = []
     for pr in prims:
         pos, faces, nrm, uvs = pr.positions, pr.indices, pr.normals, pr.uvs
+        _check_finite(p, pos)
         if nrm is None:  # glTF: missing normals mean flat shading -> one vertex per corner
             flat = faces.reshape(-1)
             pos, uvs = pos[flat], None if uvs is None else uvs[flat]
@@ -365,6 +376,8 @@ def _obj_arrays(p: Path, warn):
         nrm = np.asarray(g.vertex_normals, np.float64) if has_vn else None
         parts.append((np.asarray(g.vertices, np.float64), np.asarray(g.faces, np.int64), nrm, uv,
                       index_of[mat]))
+    for q in parts:
+        _check_finite(p, q[0])     # before the normals are computed from them
     if not has_vn:
         parts = [(q[0], q[1], vertex_normals(q[0], q[1]), q[3], q[4]) for q in parts]
     pos, idx, nrm, uvs, mids = _concat(parts, warn, "material groups")
@@ -399,11 +412,18 @@ def _parse_mtl(mtl: Path, warn) -> dict[str, Material]:
     materials = {}
     for name, d in out.items():
         def floats(key, n, default):
+            if key not in d:
+                return default
             try:
-                return [float(v) for v in d[key][:n]] if key in d else default
+                vals = [float(v) for v in d[key][:n]]
             except ValueError:
+                vals = []
+            if len(vals) == 1 and len(default) == 3:    # "Kd r": g and b equal r (MTL spec)
+                vals = vals * 3
+            if len(vals) != len(default) or not np.all(np.isfinite(vals)):   # "nan", "1e999"
                 warn(f"{mtl.name}: material {name!r}: bad {key} value {d[key]!r}; using default")
                 return default
+            return vals
 
         kd = floats("Kd", 3, list(Material().base_color))
         if "Pr" in d:

@@ -38,6 +38,7 @@ from app.color import srgb_to_linear, to_uint8_srgb
 from app.errors import ScanlightError
 from app.io.clean import clean_rgb, describe_counts
 from app.io.files import atomic_output, require_file
+from app.io.limits import MAX_PCD_HEADER, MAX_PLY_HEADER
 
 log = logging.getLogger(__name__)
 
@@ -64,15 +65,15 @@ _COLOR_NAMES = (("red", "green", "blue"), ("r", "g", "b"),
 
 def _ply_header(f, p: Path):
     """(format, elements) where elements = [(name, count, [(prop, type) | ('list', ...)])]."""
-    if f.readline().strip() != b"ply":
+    if f.readline(16).strip() != b"ply":
         raise ScanlightError(p, "not a PLY file (first line is not 'ply')")
     fmt, elements = None, []
     while True:
-        raw = f.readline()
+        raw = f.readline(MAX_PLY_HEADER + 1)    # a header line never outgrows the header
         if not raw:
             raise ScanlightError(p, "corrupt PLY: header has no 'end_header' line")
-        if f.tell() > 1 << 20:
-            raise ScanlightError(p, "corrupt PLY: header longer than 1 MB")
+        if f.tell() > MAX_PLY_HEADER:
+            raise ScanlightError(p, f"corrupt PLY: header longer than {MAX_PLY_HEADER:,} bytes")
         words = raw.decode("ascii", "replace").split()
         if not words or words[0] in ("comment", "obj_info"):
             continue
@@ -198,8 +199,8 @@ def _pcd_header(p: Path) -> tuple[int, str, int, int]:
     fields: dict[str, list[str]] = {}
     with open(p, "rb") as f:
         while True:
-            raw = f.readline()
-            if not raw or f.tell() > 1 << 16:
+            raw = f.readline(MAX_PCD_HEADER + 1)
+            if not raw or f.tell() > MAX_PCD_HEADER:
                 raise ScanlightError(p, "corrupt PCD: header has no DATA line")
             words = raw.decode("ascii", "replace").split()
             if not words or words[0].startswith("#"):
@@ -218,6 +219,11 @@ def _pcd_header(p: Path) -> tuple[int, str, int, int]:
         kind = fields["DATA"][0].lower()
     except (KeyError, IndexError, ValueError) as exc:
         raise ScanlightError(p, f"corrupt PCD header ({exc!r})") from None
+    # a field of 0 bytes would let any point count pass the size checks below
+    if not sizes or any(s not in (1, 2, 4, 8) for s in sizes) or any(c < 1 for c in counts):
+        raise ScanlightError(p, f"corrupt PCD header: SIZE must be 1, 2, 4 or 8 and COUNT at "
+                                f"least 1 per field, got SIZE {' '.join(map(str, sizes))} "
+                                f"COUNT {' '.join(map(str, counts))}")
     return n, kind, header_len, sum(s * c for s, c in zip(sizes, counts))
 
 

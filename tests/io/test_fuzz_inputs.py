@@ -762,3 +762,18 @@ def test_a_real_process(case, good, tmp_path):
     line = _one_error_line(res.stderr)
     assert res.returncode == 3 and str(bad) in line, res.stderr
     assert _snapshot(tmp_path) == before
+
+
+def test_capture_cube_maps_beyond_the_pixel_limit(good, tmp_path, capsys):
+    """Two cube maps of 8192^2 faces are 805 Mpixel of captures: refused before rendering."""
+    (tmp_path / "cams.json").write_text(json.dumps([[0.0, 1.0, 0.0], [0.5, 1.0, 0.0]]))
+    argv = _argv("expand", good, tmp_path)
+    argv[argv.index("--cameras") + 1] = str(tmp_path / "cams.json")
+    before = _snapshot(tmp_path)
+    t0 = time.perf_counter()
+    code, err = _cli(argv + ["--face-size", "8192", "--report", str(tmp_path / "r.json")],
+                     capsys)
+    assert time.perf_counter() - t0 < 60
+    line = _one_error_line(err)
+    assert code == 3 and str(tmp_path / "cams.json") in line and "limit" in line, err
+    assert _snapshot(tmp_path) == before

@@ -193,6 +193,17 @@ PARAMS: tuple[Param, ...] = (
        "asset centre.", RENDER_MODES, redo="gi"),
     _i("pbgi.microbuffer", 24, "Micro-buffer resolution M (M x M micro-pixels per receiver).",
        8, 32, "px", redo="gi"),
+    _f("pbgi.glossy_below", 0.5, "Specular lobes smoother than this roughness (and every "
+       "clearcoat) are gathered from a second micro-buffer warped to the lobe (glossy and "
+       "mirror materials without dots); 0 = cosine micro-buffer only.", 0.0, 1.0, "",
+       label="lobe buffer below", redo="gi"),
+    _i("pbgi.passes", 1, "Passes averaged in a final render (`scanlight render`): each samples "
+       "every pixel at another point inside it (anti-aliased edges and mirror images) and "
+       "rotates the lobe micro-buffers (their noise averages out); the time grows with them.",
+       1, 64, "", redo="none", ui=False),
+    _i("pbgi.idle_passes", 4, "Passes the viewer averages while the view stays still, after "
+       "the first full-resolution image (the same jitter as `render --passes`); 1 = none.",
+       1, 64, "", label="idle passes", redo="none"),
     _f("pbgi.render_scale", 1.0, "Final GI resolution relative to the viewport (refined in "
        "tiles when the view is idle).", 0.125, 1.0, "x", redo="gi"),
     _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "
@@ -344,7 +355,8 @@ def param_record(*keys: str):
 
 
 RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
-               "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face")
+               "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face",
+               "pbgi.glossy_below")
 EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
 
 

@@ -13,6 +13,10 @@
 // where the incoming radiance is read, never in how it is integrated.
 // The BRDF's parameters: receiver_principled (gen/materials.glsl) - base colour, metallic and
 // roughness from the receiver (factor x texture), the rest from the material table.
+// With LOBE_BUFFER the receivers whose specular or clearcoat lobe is too narrow for the cosine
+// micro-buffer (lib/lobe.glsl: lobe_terms) gather those lobes from their lobe micro-buffer instead,
+// each micro-pixel weighted by f cos(theta) times its own solid angle; the cosine loop then
+// leaves them out inside the lobe's domain (lobe_inside), so the two loops split the directions.
 // Output per tile pixel: GatherOutput (L_out, status 1; -1 marks a gather loop the driver cut
 // short).
 #include "lib/common.glsl"
@@ -22,6 +26,13 @@
 #include "gen/gather_output.glsl"
 #include "lib/bsh_textures.glsl"
 #include "lib/microbuffer.glsl"
+#ifdef LOBE_BUFFER
+#include "lib/lobe.glsl"
+uniform uint u_rings;
+uniform uint u_sectors;
+uniform uint u_pass;
+uniform float u_glossy_below;
+#endif
 
 layout(local_size_x = WORKGROUP_SIZE) in;
 
@@ -63,6 +74,11 @@ void main() {
     PrincipledPrepared Q = principled_prepare(P, V, N, X, Y);
     uint mm = mb_entries();
     vec3 sum = vec3(0.0);
+#ifdef LOBE_BUFFER
+    bvec2 terms = lobe_terms(Q, u_glossy_below);
+    bool lobed = any(terms) && Q.n_dot_v > 0.0;
+    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, u_rings, u_sectors);
+#endif
     uint k;
     for (k = 0u; k < mm; ++k) {
         MbDirection e = mb_table(k);
@@ -82,7 +98,42 @@ void main() {
         if (node == MB_EMPTY) continue;
         vec3 L = tnode_color(node);
 #endif
+#ifdef LOBE_BUFFER
+        vec3 fb, fs, fc;
+        principled_lobes_prepared(Q, w, fb, fs, fc);
+        if (lobed && lobe_inside(F, w)) {       // those lobes come from the lobe buffer
+            if (terms.x) fs = vec3(0.0);
+            if (terms.y) fc = vec3(0.0);
+        }
+        sum += (fb + fs + fc) * L * weight;
+#else
         sum += principled_brdf_prepared(Q, w) * L * weight;
+#endif
     }
-    gather_output_store(receiver_pixel(rid), GatherOutput(sum, k == mm ? 1.0 : -1.0));
+    bool complete = k == mm;
+#ifdef LOBE_BUFFER
+    if (lobed) {
+        uint cells = u_rings * u_sectors;
+        for (k = 0u; k < cells; ++k) {
+            vec3 w;
+            float omega;
+            lobe_cell(F, k, w, omega);
+            if (omega <= 0.0) continue;
+#ifdef RADIANCE_CUBEMAP
+            float lod = 0.5 * log2(max(omega / u_env_texel_omega, 1.0));
+            vec3 L = textureLod(u_env, w, lod).rgb;
+#else
+            uint node = lobe_entry_at(ivec2(int(k), int(i))).node;
+            if (node == MB_EMPTY) continue;
+            vec3 L = tnode_color(node);
+#endif
+            vec3 fb, fs, fc;
+            principled_lobes_prepared(Q, w, fb, fs, fc);
+            vec3 f = (terms.x ? fs : vec3(0.0)) + (terms.y ? fc : vec3(0.0));
+            sum += f * L * (omega * dot(N, w));
+        }
+        complete = complete && k == cells;
+    }
+#endif
+    gather_output_store(receiver_pixel(rid), GatherOutput(sum, complete ? 1.0 : -1.0));
 }

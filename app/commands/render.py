@@ -5,14 +5,18 @@ baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
                      [--mode classic|mipmapped|hybrid|envmap] [--microbuffer 24] --out img.exr
                      [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
                      [--background] [--budget-mb 1024] [--omega-tr-factor 32]
-                     [--parallax-tolerance 1] [--envmap-face 128]
+                     [--parallax-tolerance 1] [--envmap-face 128] [--glossy-below 0.5]
+                     [--passes 1]
 
 The rendering options and their defaults are the parameter table's (app/params.py, the same as
 the viewer's; app/commands/options.py maps the flags).
 
 PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
 ``--background`` composites the object over the room's point splats seen from the same camera;
-without it the background is black (alpha is in the PNG). ``--material`` overrides every
+without it the background is black (alpha is in the PNG). ``--passes N`` averages N renders
+whose pixels sample N points inside each pixel (app/pbgi/gbuffer.py: pass_jitter), so edges and
+mirror images are anti-aliased and the glossy lobes' jitter averages out; the radiance is then
+premultiplied by the covered fraction (alpha). ``--material`` overrides every
 material of the asset; without it the asset's own (glTF/MTL) materials are used.
 """
 
@@ -89,7 +93,10 @@ def run(args) -> int:
     r.set_cloud(cloud)
     r.set_asset(mesh)
     params = RenderParams.from_settings(values)
-    res = r.render(camera, materials, params)
+    passes = int(values["pbgi.passes"])
+    res = r.render_passes(camera, materials, params, passes,
+                          progress=(lambda k, n: log.info("pass %d/%d", k, n)) if passes > 1
+                          else None)
     img = res.image
     st = res.stats
     if not st.completed:
@@ -101,7 +108,7 @@ def run(args) -> int:
     if args.background:
         bg = r.background(camera)
         a = img[..., 3:4]
-        rgba[..., :3] = img[..., :3] * a + bg[..., :3] * (1.0 - a)
+        rgba[..., :3] = img[..., :3] + bg[..., :3] * (1.0 - a)    # premultiplied (passes)
         rgba[..., 3] = np.maximum(img[..., 3], bg[..., 3])
 
     stats = st.to_dict()                  # app.pbgi.stats.RenderStats, plus the run's inputs
@@ -120,7 +127,8 @@ def run(args) -> int:
             write_png(outs.temp("--png"), tonemap_to_srgb8(rgba, exposure))
         if args.stats:
             write_json(outs.temp("--stats"), stats)
-    print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}) in "
+    print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}"
+          + (f", {passes} passes" if passes > 1 else "") + ") in "
           f"{st.ms:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0
 

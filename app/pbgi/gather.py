@@ -19,24 +19,36 @@ class Gather:
         self.ctx = ctx
         self._progs = {}
 
-    def _prog(self, cubemap: bool, frames: bool = False):
-        key = (cubemap, frames)
+    def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False):
+        key = (cubemap, frames, lobe)
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
             if frames:
                 defines["FRAME_NORMALS"] = 1
+            if lobe:
+                defines["LOBE_BUFFER"] = 1
             self._progs[key] = load_compute(self.ctx, "pbgi_gather.glsl", defines=defines or None)
         return self._progs[key]
 
     def run(self, receivers, materials, output, first: int, count: int, m: int,
-            camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None) -> None:
+            camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
+            lobe=None, lobe_buffers=None) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
         EnvironmentMap) gives the radiance. ``frames``: per batch receiver, the normal whose
         frame its micro-buffer is in (FRAME; default its own normal - Hybrid's far-field sharing
-        gives every receiver of a block the block's frame)."""
-        prog = self._prog(env is not None, frames is not None)
+        gives every receiver of a block the block's frame). ``lobe``: the LobeSettings of the
+        glossy receivers' lobe micro-buffers (``lobe_buffers``, filled for this batch; with
+        ``env`` the lobe directions read the cube map instead; app/pbgi/lobe.py)."""
+        prog = self._prog(env is not None, frames is not None, lobe is not None)
+        if lobe is not None:
+            if env is None:
+                lobe_buffers.bind()
+            for name, value in (("u_rings", lobe.rings), ("u_sectors", lobe.sectors),
+                                ("u_pass", lobe.pass_index),
+                                ("u_glossy_below", lobe.glossy_below)):
+                prog[name] = value
         if frames is not None:
             frames.bind_to_storage_buffer(SSBO.FRAMES)
             flux_texture(self.ctx, m).use(location=TEXTURE.MB_FLUX)

@@ -29,10 +29,31 @@ TARGETS = RECEIVER.slots
 TEXTURE_UNITS = {"base": 0, "mr": 1, "normal": 2}   # the G-buffer program's material textures
 
 
-def tile_projection(camera: Camera, near: float, far: float, tile) -> np.ndarray:
+PLASTIC = 1.32471795724474602596     # the plastic number: the R2 low-discrepancy sequence
+
+
+def pass_jitter(pass_index: int) -> tuple[float, float]:
+    """Where in its pixel pass ``pass_index`` samples, (dx, dy) in pixels from the centre, x to
+    the right, y down. Pass 0 is the centre (one pass = the plain render); later passes follow
+    the R2 sequence (Roberts 2018), which fills the pixel evenly for any number of passes, so
+    the mean of n passes is a box-filtered pixel (anti-aliasing, and the reference protocol's
+    pixel filter) plus the lobe buffers' jitter averaged."""
+    if pass_index <= 0:
+        return 0.0, 0.0
+    a1, a2 = 1.0 / PLASTIC, 1.0 / (PLASTIC * PLASTIC)
+    return (float((0.5 + a1 * pass_index) % 1.0) - 0.5, float((0.5 + a2 * pass_index) % 1.0) - 0.5)
+
+
+def tile_projection(camera: Camera, near: float, far: float, tile, jitter=(0.0, 0.0)) -> np.ndarray:
     """The camera's projection restricted to the pixel rectangle tile = (x0, y0, w, h), row 0 at
-    the top: the same rays as the full image, so tiles assemble without seams."""
+    the top: the same rays as the full image, so tiles assemble without seams. ``jitter``
+    shifts every pixel's sample by (dx, dy) pixels (x right, y down; pass_jitter)."""
     p = camera.projection(near, far)
+    dx, dy = (float(v) for v in jitter)
+    if dx or dy:
+        t = np.eye(4)
+        t[0, 3], t[1, 3] = -2.0 * dx / camera.width, 2.0 * dy / camera.height
+        p = t @ p
     if tile is None:
         return p
     x0, y0, w, h = tile
@@ -107,10 +128,10 @@ class GBuffer:
         return tex[0]
 
     # -- rasterise --------------------------------------------------------------------------
-    def render(self, camera: Camera, materials, tile=None) -> dict:
-        """Rasterise; returns receivers (n, RECEIVER_FLOATS) float32 in image order (row 0 at
-        the top; ``RECEIVER.view`` reads them as records), ``coverage`` (h, w) bool and the tile
-        size."""
+    def render(self, camera: Camera, materials, tile=None, jitter=(0.0, 0.0)) -> dict:
+        """Rasterise (each pixel sampled at its centre + ``jitter`` pixels); returns receivers
+        (n, RECEIVER_FLOATS) float32 in image order (row 0 at the top; ``RECEIVER.view`` reads
+        them as records), ``coverage`` (h, w) bool and the tile size."""
         import moderngl
         x0, y0, w, h = tile if tile is not None else (0, 0, camera.width, camera.height)
         ctx = self.ctx
@@ -129,7 +150,7 @@ class GBuffer:
                                      lo, hi)
                 near = max(near, 1e-4)
                 self.prog["u_view"].write(gl_mat(relative_view(camera, self.origin)))
-                self.prog["u_proj"].write(gl_mat(tile_projection(camera, near, far, tile)))
+                self.prog["u_proj"].write(gl_mat(tile_projection(camera, near, far, tile, jitter)))
                 self.prog["u_camera"].value = tuple((camera.position - self.origin).tolist())
                 ctx.enable(moderngl.DEPTH_TEST)
                 ctx.disable(moderngl.CULL_FACE)

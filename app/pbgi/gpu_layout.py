@@ -68,6 +68,8 @@ IMAGE = Units("image units: layout(format, binding = IMG_X) uniform image, bind_
                   "MIP_SPHERE": (4, "G-buffer pyramid: position spheres (MIP_SPHERE)"),
                   "MIP_CONE": (5, "G-buffer pyramid: normal cones (MIP_CONE)"),
                   "MIP_LINK": (6, "G-buffer pyramid: topology (MIP_LINK)"),
+                  "LOBE": (7, "the lobe micro-buffers of a batch (MB_ENTRY), one row per glossy "
+                              "receiver: pbgi_lobe.glsl, the gather with LOBE_BUFFER"),
                   "SHARE_SOURCE": (1, "far-field sharing: the block micro-buffers being copied"),
                   "BSH_SPHERE": (1, "node texture being built: sphere (bsh_textures.glsl)"),
                   "BSH_CONE": (2, "node texture being built: normal cone"),
@@ -556,6 +558,12 @@ layout(binding = TEX_MB_FLUX) uniform sampler2D mb_flux_tex;
 {MB_BANDS.glsl_unpack("mb_bands_unpack")}
 MbEntry mb_entry_at(ivec2 c) {{ return mb_entry_unpack(imageLoad(mb_image, c).xy); }}
 void mb_entry_store(ivec2 c, MbEntry e) {{ imageStore(mb_image, c, uvec4(mb_entry_pack(e), 0u, 0u)); }}
+#ifdef LOBE_BUFFER
+// The lobe micro-buffers (lib/lobe.glsl): the same texels, micro-pixel k = ring * sectors + sector.
+layout({MB_ENTRY.image_format}, binding = IMG_LOBE) uniform uimage2D lobe_image;
+MbEntry lobe_entry_at(ivec2 c) {{ return mb_entry_unpack(imageLoad(lobe_image, c).xy); }}
+void lobe_entry_store(ivec2 c, MbEntry e) {{ imageStore(lobe_image, c, uvec4(mb_entry_pack(e), 0u, 0u)); }}
+#endif
 MbDirection mb_table(uint k) {{ return mb_direction_unpack(texelFetch(mb_table_tex, ivec2(int(k), 0), 0)); }}
 MbFlux mb_flux(uint k) {{ return mb_flux_unpack(texelFetch(mb_flux_tex, ivec2(int(k), 0), 0)); }}
 MbBands mb_bands(uint x, uint y) {{ return mb_bands_unpack(texelFetch(mb_index_tex, ivec2(x, y), 0)); }}

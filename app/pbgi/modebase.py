@@ -36,6 +36,7 @@ import numpy as np
 from app.errors import ScanlightError
 from app.params import RENDER_KEYS, param_record
 from app.pbgi.gather import Gather
+from app.pbgi.lobe import bytes_per_receiver as lobe_bytes_per_receiver
 from app.pbgi.microbuffer import MicroBuffers, batch_size, bytes_per_receiver
 from app.pbgi.nodetex import NodeTextures
 from app.pbgi.stats import MB, PairFigures, RenderStats, ShareFigures
@@ -85,6 +86,9 @@ class Frame:
     cut_key: tuple                    # identifies the cut this render needs (reuse)
     environment: Callable[[int], Any]  # face size -> the room as an EnvironmentMap from the
                                        # asset centre (built once per cloud, asset and size)
+    lobe: Any = None                  # LobeSettings when a receiver may be glossy (app/pbgi/lobe.py)
+    lobe_buffers: Any = None          # the Relighter's LobeBuffers (filled per batch)
+    leaf_radius: float = 0.0          # the scan's surface disc radius (lobe.surface_radius)
 
     @property
     def m(self) -> int:
@@ -225,7 +229,7 @@ class MicroBufferMode(RenderMode):
         state_per = int(cut.bytes_per_receiver(m))
         budget = frame.params.memory_budget_mb * MB
         reserve = int(cut.reserve_bytes(budget))
-        mb_per = bytes_per_receiver(m)
+        mb_per = bytes_per_receiver(m) + lobe_bytes_per_receiver(frame.lobe)
         per = batch_size(m, max(budget - reserve, 0.0) * mb_per / (mb_per + state_per),
                          int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)), n)
         reuse = per >= n and held.key == frame.cut_key
@@ -254,13 +258,22 @@ class MicroBufferMode(RenderMode):
                     log.warning("GPU memory refused (%s): batch halved to %d receivers", exc, per)
                     continue
                 ctx.finish()
+            tl = time.perf_counter()
+            if frame.lobe is not None:
+                lobe_figures = frame.lobe_buffers.fill(
+                    frame.lobe, frame.receivers, frame.materials, first, count, per, frame.nodes,
+                    frame.cell_size, frame.camera_rel, frame.leaf_radius)
+                ctx.finish()
+                stats.ms_lobe += (time.perf_counter() - tl) * 1e3
+                stats.lobe_incomplete += lobe_figures["incomplete"]
             tg = time.perf_counter()
             frames = held.frames if reuse else batches[-1].frames
             frame.gather.run(frame.receivers, frame.materials, frame.output, first, count, m,
-                             frame.camera_rel, mb=held.buffers, nodes=frame.nodes, frames=frames)
+                             frame.camera_rel, mb=held.buffers, nodes=frame.nodes, frames=frames,
+                             lobe=frame.lobe, lobe_buffers=frame.lobe_buffers)
             ctx.finish()
             t_gather += time.perf_counter() - tg
-            t_cut += tg - tc
+            t_cut += tl - tc
             stats.batches += 1
             first += count
         if reuse:

@@ -30,6 +30,7 @@ from app.errors import ScanlightError
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
 from app.pbgi.gpu_layout import GATHER_OUTPUT, RECEIVER
 from app.pbgi.microbuffer import MicroBuffers, entries
+from app.pbgi.lobe import LobeBuffers, LobeSettings, needs_lobe, surface_radius
 from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
 from app.pbgi.modes import create_mode
 from app.pbgi.nodetex import NodeTextures
@@ -77,6 +78,9 @@ def recolor(hierarchy, colors: np.ndarray) -> np.ndarray:
 _BSH_CACHE: dict[str, object] = {}
 
 
+_RADIUS_CACHE: dict = {}       # geometry fingerprint -> the scan's surface radius (one cloud)
+
+
 class Relighter:
     def __init__(self, ctx=None):
         from app.pbgi.gather import Gather
@@ -100,6 +104,8 @@ class Relighter:
         self._env = None
         self._env_key = None
         self.last_receivers = None
+        self._lobe = None                  # LobeBuffers, made on the first glossy render
+        self.leaf_radius = 0.0             # the cloud's surface_radius (lobe ray casts)
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -123,6 +129,9 @@ class Relighter:
             _BSH_CACHE[geo_key] = (col_key, hierarchy)
         old_origin = None if self.hierarchy is None else self.hierarchy.origin
         self.cloud, self.hierarchy = cloud, hierarchy
+        if _RADIUS_CACHE.get("key") != geo_key:
+            _RADIUS_CACHE.update(key=geo_key, radius=surface_radius(cloud.positions))
+        self.leaf_radius = _RADIUS_CACHE["radius"]
         if self.nodes_buf is not None:
             self.nodes_buf.release()
         self.nodes_buf = self.ctx.buffer(np.ascontiguousarray(hierarchy.nodes).tobytes())
@@ -196,7 +205,11 @@ class Relighter:
         self._held.key = None
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
-               tile=None) -> RenderResult:
+               tile=None, pass_index: int = 0) -> RenderResult:
+        """Relight the asset seen by ``camera`` (``tile``: a part of the image).
+        ``pass_index`` moves each pixel's sample inside the pixel (gbuffer.pass_jitter; pass 0
+        is the centre) and re-jitters the lobe micro-buffers (app/pbgi/lobe.py): the mean of
+        several passes is anti-aliased and averages the lobes' noise (``render_passes``)."""
         params = (params or RenderParams()).validated()
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
@@ -215,11 +228,11 @@ class Relighter:
         tile = (x0, y0, w, h)
         m = int(params.microbuffer)
         ctx = self.ctx
-        from app.pbgi.gbuffer import material_table
+        from app.pbgi.gbuffer import material_table, pass_jitter
 
         ctx.finish()
         t0 = time.perf_counter()
-        gb = self.gbuffer.render(camera, materials, tile)
+        gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
         rec = gb["receivers"]
         rec = rec[np.argsort(z_order(RECEIVER.view(rec)["pixel"], w), kind="stable")]
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
@@ -244,15 +257,22 @@ class Relighter:
         cut_key = (self._cloud_version, self._asset_version, params.mode, m, tile,
                    params.omega_tr_factor, params.parallax_tolerance,
                    tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
-                   tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n,
+                   tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, pass_jitter(pass_index),
                    tuple(id(mt.normal_texture) for mt in materials))
+        lobe = None
+        if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
+            lobe = LobeSettings.for_microbuffer(m, params.glossy_below, pass_index)
+            if self._lobe is None:
+                self._lobe = LobeBuffers(ctx)
+            stats.lobe_receivers = True
         try:
             frame = Frame(params=params, receivers=bufs["receivers"],
                           materials=bufs["materials"], output=bufs["output"], count=n,
                           tile=tile, camera_rel=camera.position - self.origin,
                           nodes=self.node_tex, cell_size=self.hierarchy.cell_size,
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
-                          environment=self.environment)
+                          environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
+                          leaf_radius=self.leaf_radius)
             extra += self.mode_for(params).render(frame, stats)
             t2 = time.perf_counter()
             out = GATHER_OUTPUT.view(bufs["output"].read()).reshape(h, w)
@@ -268,16 +288,36 @@ class Relighter:
         stats.nonfinite_pixels = int(bad.any(axis=-1).sum())
         stats.gather_cut_short = int((out["status"][cover] < 0).sum())
         stats.completed = (not stats.incomplete_receivers and stats.gather_cut_short == 0
+                           and stats.lobe_incomplete == 0
                            and stats.nonfinite_pixels == 0)
         stats.ms, stats.mb = (t2 - t0) * 1e3, max(extra, gb["bytes"]) / MB
         return RenderResult(image, stats)
+
+    def render_passes(self, camera, materials=None, params: RenderParams | None = None,
+                      passes: int = 1, tile=None, progress=None) -> RenderResult:
+        """The mean of ``passes`` renders (pass_index 0 .. passes - 1): anti-aliased pixels
+        (alpha is the covered fraction and the radiance is premultiplied by it) and the lobe
+        buffers' noise averaged. ``progress(done, total)`` after each pass. Stats: the first
+        pass's, with the times and flags of all."""
+        passes = max(int(passes), 1)
+        acc, first, ms, completed = None, None, 0.0, True
+        for k in range(passes):
+            res = self.render(camera, materials, params, tile=tile, pass_index=k)
+            acc = res.image.astype(np.float64) if acc is None else acc + res.image
+            first = first or res.stats
+            ms += res.stats.ms
+            completed &= res.stats.completed
+            if progress is not None:
+                progress(k + 1, passes)
+        stats = replace(first, ms=ms, completed=completed, passes=passes)
+        return RenderResult((acc / passes).astype(np.float32), stats)
 
     def release(self) -> None:
         self.gbuffer.release()
         self.microbuffers.release()
         for mode in self.modes.values():
             mode.release()
-        for obj in (self.nodes_buf, self.node_tex, self._splat, self._env):
+        for obj in (self.nodes_buf, self.node_tex, self._splat, self._env, self._lobe):
             if obj is not None:
                 obj.release()
-        self.nodes_buf = self.node_tex = self._splat = self._env = None
+        self.nodes_buf = self.node_tex = self._splat = self._env = self._lobe = None

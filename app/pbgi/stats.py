@@ -110,7 +110,11 @@ class RenderStats:
     ms_gbuffer: float = 0.0           # G-buffer and receiver list
     ms_cut: float = 0.0               # finding the cuts into the micro-buffers
     ms_gather: float = 0.0            # the final gather
-    ms: float = 0.0                   # the whole render
+    ms_lobe: float = 0.0              # the glossy receivers' lobe micro-buffers (app/pbgi/lobe.py)
+    lobe_receivers: bool = False      # lobe micro-buffers were used (a glossy material)
+    lobe_incomplete: int = 0          # receivers whose lobe walk did not complete
+    ms: float = 0.0                   # the whole render (every pass)
+    passes: int = 1                   # passes averaged (Relighter.render_passes)
     mb: float = 0.0                   # GPU memory: the larger of the G-buffer and the rest
     nonfinite_pixels: int = 0         # pixels that came out NaN or Inf (set to 0)
     gather_cut_short: int = 0         # pixels whose gather stopped early

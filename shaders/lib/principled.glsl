@@ -137,11 +137,16 @@ PrincipledPrepared principled_prepare(PrincipledParams p, vec3 V, vec3 N, vec3 X
     return q;
 }
 
-vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {
+// The BRDF's three lobes apart (the lobe micro-buffer gathers the specular ones through its own
+// directions, app/pbgi/lobe.py): ``base`` = diffuse, subsurface and sheen (wide lobes), ``spec`` =
+// the GGX specular lobe, ``coat`` = the clearcoat lobe; f = base + spec + coat.
+void principled_lobes_prepared(PrincipledPrepared q, vec3 L, out vec3 base, out vec3 spec,
+                               out vec3 coat) {
     vec3 N = q.N, V = q.V;
     float n_dot_l = dot(N, L);
     float n_dot_v = q.n_dot_v;
-    if (n_dot_l <= 0.0 || n_dot_v <= 0.0) return vec3(0.0);
+    base = spec = coat = vec3(0.0);
+    if (n_dot_l <= 0.0 || n_dot_v <= 0.0) return;
     vec3 H = normalize(L + V);
     float n_dot_h = dot(N, H);
     float l_dot_h = dot(L, H);
@@ -160,8 +165,15 @@ vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {
     float dr = principled_gtr1(n_dot_h, dot(nxh, nxh), q.cc_alpha);
     float fr = mix(0.04, 1.0, fh);
     float gr = principled_smith_ggx(n_dot_l, 0.25) * q.gr_v;
-    return (INV_PI * mix(fd, ss, q.subsurface) * q.base + f_sheen) * (1.0 - q.metallic)
-         + gs * ds * fs + vec3(0.25 * q.clearcoat * gr * fr * dr);
+    base = (INV_PI * mix(fd, ss, q.subsurface) * q.base + f_sheen) * (1.0 - q.metallic);
+    spec = gs * ds * fs;
+    coat = vec3(0.25 * q.clearcoat * gr * fr * dr);
+}
+
+vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {
+    vec3 base, spec, coat;
+    principled_lobes_prepared(q, L, base, spec, coat);
+    return base + spec + coat;
 }
 
 vec3 principled_brdf(PrincipledParams p, vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y) {

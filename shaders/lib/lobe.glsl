@@ -1,0 +1,225 @@
+// The lobe micro-buffer: a second micro-buffer per glossy receiver whose micro-pixels follow its
+// specular lobe (seed 001, Section 2.3: BRDF importance-warped micro-buffers). Why and the
+// numbers: app/pbgi/lobe.py (tested through the white furnace at every roughness and the
+// path-traced sweep: tests/pbgi/test_pbgi_render.py, tests/pbgi/test_glossy_sweep.py).
+//
+// Mapping. Micro-pixel k = (ring i, sector j), LOBE_RINGS x LOBE_SECTORS of them, lives in
+// half-vector space around the receiver's normal: the GGX distribution of normals with the warp's
+// alpha a_w puts an equal share of D(h) cos(theta_h) in every ring when rings are uniform in
+//     u = tan^2(theta_h) / (a_w^2 + tan^2(theta_h))          (the NDF's CDF in theta_h)
+// and sectors uniform in phi. Ring i covers u in u_max [i, i + 1) / LOBE_RINGS; u_max bounds the
+// lobe's domain (tan theta_h <= LOBE_DOMAIN x the larger alpha: 99% of a GGX lobe's energy for
+// LOBE_DOMAIN 10). A micro-pixel's ray leaves in L = reflect(-V, h) for h at a jittered point of
+// the micro-pixel (per receiver and pass: the frame is rotated by a random phi_0 and the point is
+// random inside its cell, so residual quantisation is noise, never a grid). Its solid angle in L
+// is the Jacobian 4 (V.h) times its solid angle in h,
+//     Omega_h = du dphi a_w^2 / (2 (1 - u)^2 (1 + tan^2)^(3/2))     (d omega_h = du dphi / (2 pi D cos))
+// which is what the gather weights by and what the cut compares a node's solid angle with.
+// Outside the domain the specular lobe stays in the cosine micro-buffer: the two buffers split the
+// sphere of directions in h, so nothing is counted twice or lost. Two lobes of very different
+// widths (clearcoat over a glossy base) get a piece of the rings each (lobe_frame).
+//
+// Needs lib/common.glsl, lib/principled.glsl.
+#ifndef SCANLIGHT_LOBE_GLSL
+#define SCANLIGHT_LOBE_GLSL
+
+#ifndef LOBE_DOMAIN
+#define LOBE_DOMAIN 10.0
+#endif
+#define LOBE_MIN_ALPHA 1e-3
+#define LOBE_MAX_U 0.99995
+#define LOBE_SPLIT_RATIO 3.0     // two lobes this far apart in alpha get a piece each
+
+struct LobeFrame {
+    vec3 N, T, B, V;
+    float a2;        // warp alpha^2 of the inner piece (the narrowest lobe)
+    float u_max;     // the inner piece's end in its u
+    float a2o;       // warp alpha^2 of the outer piece (the widest lobe; = a2 with one piece)
+    float uo0, uo1;  // the outer piece's u range, in its own u
+    float tan2_split;  // tan^2(theta_h) where the inner piece ends (1e30: one piece)
+    float tan2_max;    // the domain: tan^2(theta_h) below this
+    float phi0;      // frame rotation (radians)
+    uint seed;       // per receiver and pass
+    uint rings, sectors;
+    uint split;      // rings of the inner piece (= rings with one piece)
+};
+
+uint lobe_hash(uint x) {           // PCG-style integer hash
+    x = x * 747796405u + 2891336453u;
+    uint w = ((x >> ((x >> 28u) + 4u)) ^ x) * 277803737u;
+    return (w >> 22u) ^ w;
+}
+float lobe_unit(uint h) { return float(h >> 8u) * (1.0 / 16777216.0); }
+
+// The lobe micro-buffer of a receiver whose narrowest lobe has alpha ``aw`` and widest ``amax``
+// (lobe_frame_for picks them from its lobes). One lobe, or two of similar width: one piece, the
+// warp of ``aw`` over the whole domain (tan theta_h <= LOBE_DOMAIN amax). Two lobes of very
+// different widths (a mirror-like clearcoat over a glossy base): the inner half of the rings is
+// warped to the narrow lobe up to its own domain, the outer half to the wide lobe beyond it, so
+// neither lobe is left to a few huge micro-pixels (which made fireflies).
+LobeFrame lobe_frame(vec3 N, vec3 V, float aw, float amax, uint pixel, uint pass, uint rings,
+                     uint sectors) {
+    LobeFrame f;
+    f.N = N;
+    orthonormal_basis(N, f.T, f.B);
+    f.V = V;
+    aw = max(aw, LOBE_MIN_ALPHA);
+    amax = max(amax, aw);
+    float d2 = LOBE_DOMAIN * LOBE_DOMAIN;
+    f.a2 = aw * aw;
+    f.seed = lobe_hash(pixel * 9781u + pass * 6271u + 17u);
+    f.phi0 = TWO_PI * lobe_unit(lobe_hash(f.seed));
+    f.rings = rings;
+    f.sectors = sectors;
+    float t2 = d2 * amax * amax;
+    if (amax > LOBE_SPLIT_RATIO * aw && rings >= 2u) {
+        float t1 = d2 * f.a2;
+        f.u_max = t1 / (f.a2 + t1);
+        f.a2o = amax * amax;
+        f.uo0 = t1 / (f.a2o + t1);
+        f.uo1 = min(t2 / (f.a2o + t2), LOBE_MAX_U);
+        f.tan2_split = t1;
+        f.split = rings / 2u;
+    } else {
+        f.u_max = min(t2 / (f.a2 + t2), LOBE_MAX_U);
+        f.a2o = f.a2;
+        f.uo0 = 0.0;
+        f.uo1 = f.u_max;
+        f.tan2_split = 1e30;
+        f.split = rings;
+    }
+    f.tan2_max = f.a2o * f.uo1 / (1.0 - f.uo1);
+    return f;
+}
+
+// Which lobes of a receiver the lobe micro-buffer takes: x = the GGX specular lobe (roughness
+// below ``glossy_below``: rougher lobes the cosine micro-buffer resolves), y = the clearcoat (any:
+// its alpha <= 0.1 is always too narrow for the cosine micro-buffer). Sheen, diffuse and
+// subsurface stay in the cosine micro-buffer.
+bvec2 lobe_terms(PrincipledPrepared q, float glossy_below) {
+    return bvec2(q.roughness < glossy_below, q.clearcoat > 0.0);
+}
+
+// The frame for those lobes: the warp follows the narrowest, the domain covers the widest.
+LobeFrame lobe_frame_for(PrincipledPrepared q, bvec2 terms, uint pixel, uint pass, uint rings,
+                         uint sectors) {
+    float aw = 1.0, amax = 0.0;
+    if (terms.x) { aw = sqrt(q.ax * q.ay); amax = max(q.ax, q.ay); }
+    if (terms.y) { aw = min(aw, q.cc_alpha); amax = max(amax, q.cc_alpha); }
+    return lobe_frame(q.N, q.V, aw, amax, pixel, pass, rings, sectors);
+}
+
+// Is incoming direction w (unit, world) inside the lobe micro-buffer's domain? Its lobes are
+// then gathered there, not from the cosine micro-buffer.
+bool lobe_inside(LobeFrame f, vec3 w) {
+    vec3 h = w + f.V;
+    float hn = dot(h, f.N);
+    if (hn <= 0.0) return false;
+    float h2 = dot(h, h);
+    float tan2 = max(h2 - hn * hn, 0.0) / (hn * hn);
+    return tan2 < f.tan2_max;
+}
+
+// A piece of the mapping: its warp alpha^2, its first u, its u per ring, its first ring.
+struct LobePiece { float a2, u0, du; uint r0; };
+
+LobePiece lobe_piece(LobeFrame f, bool outer) {
+    if (!outer) return LobePiece(f.a2, 0.0, f.u_max / float(f.split), 0u);
+    return LobePiece(f.a2o, f.uo0, (f.uo1 - f.uo0) / float(f.rings - f.split), f.split);
+}
+
+// The micro-pixel solid angle in h at tan^2 theta_h (d omega_h = du dphi / (2 pi D cos)).
+float lobe_omega_h(LobePiece p, float tan2, float dphi) {
+    float one_u = 1.0 - tan2 / (p.a2 + tan2);
+    return p.du * dphi * p.a2 / (2.0 * one_u * one_u * (1.0 + tan2) * sqrt(1.0 + tan2));
+}
+
+// The ring of half-vector angle tan^2 (monotone in theta_h across both pieces).
+uint lobe_ring(LobeFrame f, float tan2) {
+    bool outer = tan2 >= f.tan2_split;
+    LobePiece p = lobe_piece(f, outer);
+    float u = tan2 >= 1e29 ? 1.0 : tan2 / (p.a2 + tan2);
+    uint last = outer ? f.rings - 1u : f.split - 1u;
+    return uint(clamp(floor((u - p.u0) / p.du) + float(p.r0), float(p.r0), float(last)));
+}
+
+// Micro-pixel k's ray (world L, unit) and its solid angle in L; omega 0 when L is below the
+// horizon or the micro-pixel is empty.
+void lobe_cell(LobeFrame f, uint k, out vec3 L, out float omega) {
+    uint i = k / f.sectors, j = k - i * f.sectors;
+    uint h = lobe_hash(f.seed ^ (k * 2654435761u));
+    float xi1 = lobe_unit(h), xi2 = lobe_unit(lobe_hash(h));
+    LobePiece p = lobe_piece(f, i >= f.split);
+    float dphi = TWO_PI / float(f.sectors);
+    float u = p.u0 + (float(i - p.r0) + xi1) * p.du;
+    float phi = f.phi0 + (float(j) + xi2) * dphi;
+    float tan2 = p.a2 * u / (1.0 - u);
+    float c2 = 1.0 / (1.0 + tan2);                       // cos^2 theta_h
+    float ch = sqrt(c2), sh = sqrt(max(1.0 - c2, 0.0));
+    vec3 H = f.T * (sh * cos(phi)) + f.B * (sh * sin(phi)) + f.N * ch;
+    float vh = dot(f.V, H);
+    L = 2.0 * vh * H - f.V;
+    omega = (vh > 0.0 && dot(L, f.N) > 0.0) ? 4.0 * vh * lobe_omega_h(p, tan2, dphi) : 0.0;
+}
+
+// The micro-pixels a node may cover: node direction l (unit, world) with angular radius
+// b (sin_b, cos_b). Returns (ring0, ring1, sector0, sectors) packed 8 bits each, 0xFFFFFFFF when
+// the node lies outside the lobe's domain; ``omega_min`` = the smallest micro-pixel solid angle
+// (in L) it covers (the cut compares the node with it).
+uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min) {
+    vec3 s = l + f.V;
+    float len = length(s);
+    omega_min = 0.0;
+    float cos_d = 0.5 * len;                            // V.h_c = l.h_c
+    float b = atan(sin_b, cos_b);
+    float den = 2.0 * cos_d - b;
+    uint full = (f.rings - 1u) << 8u | (f.sectors << 24u);
+    float dphi = TWO_PI / float(f.sectors);
+    if (den < 0.05) {                                   // the node spans the reflection's pole
+        omega_min = 4.0 * max(cos_d, 1e-3) * lobe_omega_h(lobe_piece(f, false), 0.0, dphi);
+        return full;
+    }
+    float bh = b / den;                                 // angular radius in h (a bound)
+    vec3 hc = s / len;
+    float ch = dot(hc, f.N);
+    float th = acos(clamp(ch, -1.0, 1.0));
+    float lo = max(th - bh, 0.0), hi = th + bh;
+    float tlo = tan(lo);
+    float tan2_lo = lo >= 0.5 * PI ? 1e30 : tlo * tlo;
+    if (tan2_lo >= f.tan2_max) return 0xFFFFFFFFu;     // outside the domain
+    float thi = tan(min(hi, 0.5 * PI - 1e-4));
+    float tan2_hi = hi >= 0.5 * PI ? 1e30 : thi * thi;
+    uint r0 = lobe_ring(f, tan2_lo);
+    uint r1 = lobe_ring(f, tan2_hi);
+    bool outer = tan2_lo >= f.tan2_split;
+    float om = lobe_omega_h(lobe_piece(f, outer), tan2_lo, dphi);
+    if (!outer && tan2_hi >= f.tan2_split)             // it reaches into the outer piece too
+        om = min(om, lobe_omega_h(lobe_piece(f, true), f.tan2_split, dphi));
+    omega_min = 4.0 * cos_d * om;
+    uint s0 = 0u, ns = f.sectors;
+    float sth = sin(th);
+    if (lo > 0.0 && sin(bh) < sth) {
+        float half_w = asin(clamp(sin(bh) / sth, 0.0, 1.0));
+        float phic = atan(dot(hc, f.B), dot(hc, f.T)) - f.phi0;
+        float a = (phic - half_w) / dphi, c = (phic + half_w) / dphi;
+        float fa = floor(a);
+        uint cnt = uint(floor(c) - fa) + 1u;
+        if (cnt < f.sectors) {          // (GLSL's % is undefined for negative operands)
+            s0 = uint(int(fa) + 8 * int(f.sectors)) % f.sectors;
+            ns = cnt;
+        }
+    }
+    return r0 | (r1 << 8u) | (s0 << 16u) | (ns << 24u);
+}
+
+uint lobe_rect_cells(uint r) { return (((r >> 8u) & 255u) - (r & 255u) + 1u) * (r >> 24u); }
+
+// Cell of step n of a packed rectangle (rings r0..r1 x ns sectors from s0, wrapping).
+uint lobe_rect_cell(LobeFrame f, uint r, uint n) {
+    uint ns = r >> 24u;
+    uint ring = (r & 255u) + n / ns;
+    uint sector = ((r >> 16u) & 255u) + n % ns;
+    if (sector >= f.sectors) sector -= f.sectors;
+    return ring * f.sectors + sector;
+}
+#endif

@@ -1,0 +1,162 @@
+// The lobe micro-buffer's walk (lib/lobe.glsl, app/pbgi/lobe.py): per glossy receiver, a
+// depth-first stackless walk of the whole BSH with Classic's culls (horizon, back-facing normal
+// cones) plus the lobe's own: a node whose half-vector cone lies outside the lobe's domain is
+// skipped with its sub-tree. A node is accepted when its solid angle is at most u_stop_factor
+// times the smallest lobe micro-pixel it covers (a narrow lobe descends to the leaves near the
+// reflection and stays coarse away from it), or when it is a leaf; accepted nodes are ray cast
+// through every micro-pixel of their ring x sector rectangle (mb_hit_key: the ray against the
+// node's disc, so a leaf larger than a micro-pixel is a closed surface, not one dot), depth
+// tested. The same walk serves every mode (Classic, Mipmapped, Hybrid): only the cosine
+// micro-buffer differs between them.
+//
+// Resumable like pbgi_classic.glsl (llvmpipe ends every loop of an invocation after 65,535
+// iterations in total): state[i] is a ClassicState; a receiver that needs no lobe buffer is done
+// at once.
+#define LOBE_BUFFER 1
+#include "lib/common.glsl"
+#include "lib/principled.glsl"
+#include "lib/bsh_textures.glsl"
+#include "lib/microbuffer.glsl"
+#include "lib/lobe.glsl"
+#include "gen/receivers.glsl"
+#include "gen/materials.glsl"
+#include "gen/walk_state.glsl"
+
+#ifndef LIST_CAP
+#define LIST_CAP 256
+#endif
+#define CUT_LIST_CAP LIST_CAP
+#include "lib/pbgi_cut.glsl"
+
+layout(local_size_x = WORKGROUP_SIZE) in;
+
+layout(std430, binding = SSBO_WALK_STATE) buffer State { ClassicState state[]; };
+layout(std430, binding = SSBO_COUNTERS) buffer Counter { uint remaining; };
+
+uniform uint u_first;           // first receiver of the batch
+uniform uint u_count;           // receivers in the batch
+uniform uint u_rings;           // lobe micro-buffer: rings ...
+uniform uint u_sectors;         // ... x sectors
+uniform uint u_pass;            // jitter pass
+uniform float u_glossy_below;   // roughness below which the GGX lobe is in the lobe buffer
+uniform float u_stop_factor;    // accept a node of solid angle <= this x the micro-pixel's
+uniform uint u_steps;           // node visits per dispatch
+uniform uint u_splat_budget;    // ray tests per dispatch
+uniform float u_inv_cell_area;  // 1 / cell_size^2 (tie-break scale)
+uniform uint u_node_count;      // BSH_END
+uniform vec3 u_camera;          // camera position relative to the hierarchy origin
+uniform float u_leaf_radius;    // a leaf is a disc of at least this radius (the scan's surface)
+
+void lobe_write(uint receiver, uint k, uint key, uint node) {
+    ivec2 c = ivec2(int(k), int(receiver));
+    if (key < lobe_entry_at(c).key) lobe_entry_store(c, MbEntry(key, node));
+}
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= u_count) return;
+    ClassicState st = state[i];
+    uint end = u_node_count;
+    uint node = st.next;
+    if (node >= end) return;
+
+    uint rid = u_first + i;
+    vec3 p = receiver_position(rid);
+    vec3 N = receiver_normal(rid);
+    vec3 tangent = receiver_tangent(rid);
+    vec3 V = normalize(u_camera - p);
+    vec3 X = tangent - N * dot(N, tangent);
+    vec3 T0, B0;
+    orthonormal_basis(N, T0, B0);
+    X = dot(X, X) > 1e-12 ? normalize(X) : T0;
+    PrincipledPrepared Q = principled_prepare(receiver_principled(rid), V, N, X, cross(N, X));
+    bvec2 terms = lobe_terms(Q, u_glossy_below);
+    if (!any(terms) || Q.n_dot_v <= 0.0) {
+        state[i] = ClassicState(end, st.visited, st.flags | WALK_DONE, st.tests);
+        return;
+    }
+    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, u_rings, u_sectors);
+
+    uint count = 0u, cost = 0u, steps = 0u;
+    while (node < end && steps < u_steps) {
+        BshSphere s = tnode_sphere(node);
+        BshLink link = tnode_link(node);
+        bool leaf = (link.count_flags & BSH_TEX_LEAF_BIT) != 0u;
+        if (leaf) s.radius = max(s.radius, u_leaf_radius);   // ray cast as the scan's disc
+        vec3 dv = s.center - p;
+        float d2 = dot(dv, dv);
+        float r2 = s.radius * s.radius;
+        uint next = node + 1u;
+        uint rect = 0xFFFFFFFFu;
+        bool accept = false;
+        if (dot(dv, N) <= -s.radius) {
+            next = link.skip;                              // below the horizon
+        } else if (d2 > r2) {
+            float inv_d = inversesqrt(d2);
+            float sin_b = s.radius * inv_d;
+            float sin_b2 = sin_b * sin_b;
+            float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
+            BshCone cone = tnode_cone(node);
+            float sin_a = sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0));
+            float cos_ab = cone.cos_angle * cos_b - sin_a * sin_b;
+            float sin_ab = sin_a * cos_b + cone.cos_angle * sin_b;
+            float om_min;
+            if (cos_ab > 0.0 && dot(dv, cone.axis) * inv_d > sin_ab) {
+                next = link.skip;                          // back-facing (Fig. 5)
+            } else {
+                rect = lobe_rect(F, dv * inv_d, sin_b, cos_b, om_min);
+                if (rect == 0xFFFFFFFFu) {
+                    next = link.skip;                      // outside the lobe's domain
+                } else {
+                    float omega = TWO_PI * sin_b2 / (1.0 + cos_b);
+                    accept = leaf || omega <= u_stop_factor * om_min;
+                }
+            }
+        } else if (leaf) {                                 // receiver inside a leaf
+            accept = true;
+            rect = (u_rings - 1u) << 8u | (u_sectors << 24u);
+        }
+        if (accept) {
+            uint c = lobe_rect_cells(rect);
+            if (count == uint(CUT_LIST_CAP) || (count > 0u && cost + c > u_splat_budget)) break;
+            cut_list_node[count] = node;
+            cut_list_rect[count] = rect;
+            count++;
+            cost += c;
+            next = link.skip;
+        }
+        node = next;
+        steps++;
+    }
+
+    // ---- ray cast the accepted nodes through their micro-pixels: one flat loop --------------
+    uint k = 0u, n = 0u, it;
+    MbNode nd;
+    uint rect = 0u, cells = 0u;
+    bool load = true;
+    for (it = 0u; it < cost; ++it) {
+        if (load) {
+            nd = cut_node(cut_list_node[k], p, u_inv_cell_area);
+            if ((tnode_link(nd.index).count_flags & BSH_TEX_LEAF_BIT) != 0u)
+                nd.r2 = max(nd.r2, u_leaf_radius * u_leaf_radius);
+            rect = cut_list_rect[k];
+            cells = lobe_rect_cells(rect);
+            n = 0u;
+            load = false;
+        }
+        uint cell = lobe_rect_cell(F, rect, n);
+        vec3 L;
+        float omega;
+        lobe_cell(F, cell, L, omega);
+        if (omega > 0.0) {
+            uint key = mb_hit_key(nd, L);
+            if (key != MB_EMPTY) lobe_write(i, cell, key, nd.index);
+        }
+        if (++n == cells) { k++; load = true; }
+    }
+    uint resume = (it == cost && k == count) ? node : cut_list_node[min(k, count - 1u)];
+    if (count == 0u) resume = node;
+    uint flags = (resume >= end ? WALK_DONE : 0u) | (it == cost ? 0u : WALK_CUT_SHORT);
+    state[i] = ClassicState(resume, st.visited + steps, st.flags | flags, st.tests + it);
+    if (resume < end) atomicAdd(remaining, 1u);
+}

@@ -373,7 +373,8 @@ class ViewerEngine:
         layer = scaled_camera(cam, self.session.settings["pbgi.render_scale"])
         rect = screen_rect(layer, *self.mesh.bounds())
         s = self.session.settings
-        self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"])
+        self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
+                        s["pbgi.idle_passes"])
         self._asset_dirty = True
 
     def _upload_gi(self) -> None:
@@ -416,11 +417,12 @@ class ViewerEngine:
                             asset_rect=rect, label_rect=label, room=room)
         self._composite_dirty = self._asset_dirty = False
 
-    def _render_gi(self, camera: Camera, tile) -> np.ndarray:
+    def _render_gi(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
         s = self.session.settings
         params = RenderParams.from_settings(s)
         try:
-            res = self.relighter.render(camera, self.session.materials, params, tile=tile)
+            res = self.relighter.render(camera, self.session.materials, params, tile=tile,
+                                        pass_index=pass_index)
         except Exception as exc:
             self.gi_failed = True
             if isinstance(exc, ScanlightError):

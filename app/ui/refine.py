@@ -36,7 +36,14 @@ budget (rounded down to a power of two) and a frame starts another run of cells 
 predicted cost still fits the budget; the window then draws imgui (and sees the user's input)
 at least every budget or so, instead of after a run that overshot it several times.
 
-The render function is injected (``render(camera, tile) -> (h, w, 4) float32`` GI_TEXEL texels:
+3. *Passes* (``pbgi.idle_passes``, only while nothing changes): once the layer is complete the
+   tiles run again with pass index 1, 2, ... (app/pbgi/gbuffer.py: pass_jitter moves each
+   pixel's sample inside the pixel, app/pbgi/lobe.py rotates the glossy lobes' micro-buffers),
+   and each texel shows the mean radiance of the passes that saw the asset there: edges and
+   mirror images are anti-aliased and the lobes' noise averages out. The compositor's
+   silhouette comes from its own full-resolution G-buffer, so the mean is kept unpremultiplied.
+
+The render function is injected (``render(camera, tile[, pass_index]) -> (h, w, 4) float32`` GI_TEXEL texels:
 radiance, and 1 on the asset, 0 off it): the viewer passes the real PBGI renderer; tests check
 the scheduling arithmetic with a fake clock (exact timings) and the tiling with the real
 renderer.
@@ -154,17 +161,25 @@ class ProgressiveGI:
         self.full_reset = False
         self.dirty_rects: list[tuple[int, int, int, int]] = []
         self.last_preview_ms = 0.0
+        self.passes = 1                        # passes to average (pbgi.idle_passes)
+        self.pass_index = 0                    # the pass the tiles are running
+        self._sum: np.ndarray | None = None    # radiance summed over the passes that hit
+        self._hits: np.ndarray | None = None   # passes that hit the asset, per texel
 
     # -- state the UI shows ----------------------------------------------------------------------
     @property
     def progress(self) -> float:
+        """Fraction of the whole refinement done, every pass counted."""
         if self._preview_pending:
             return 0.0
-        return 1.0 if self._cells_total == 0 else self._cells_done / self._cells_total
+        if self._cells_total == 0:
+            return 1.0
+        return (self.pass_index + self._cells_done / self._cells_total) / self.passes
 
     @property
     def refining(self) -> bool:
-        return self._preview_pending or self._cells_done < self._cells_total
+        return (self._preview_pending or self._cells_done < self._cells_total
+                or (self._cells_total > 0 and self.pass_index + 1 < self.passes))
 
     def seconds_left(self) -> float | None:
         """Wall-clock seconds the refinement still needs, or None while there is not enough to
@@ -182,7 +197,10 @@ class ProgressiveGI:
             return "converged"
         if self.progress == 0:
             return f"preview at 1/{1 / self.shown_scale:.0f} resolution"
-        percent = 100 * self._cells_done // self._cells_total
+        percent = int(100 * self.progress)
+        if self.pass_index > 0:
+            return (f"refining {percent}% (pass {self.pass_index + 1} of {self.passes}), "
+                    f"{time_left_words(self.seconds_left())}")
         return f"refining {percent}%, {time_left_words(self.seconds_left())}"
 
     # -- control ---------------------------------------------------------------------------------
@@ -194,8 +212,12 @@ class ProgressiveGI:
         side = math.sqrt(max(budget_ms, 1e-3) * 0.5 / self.ms_per_px)
         return int(min(max(2 ** math.floor(math.log2(max(side, 1.0))), MIN_CELL), MAX_CELL))
 
-    def restart(self, camera: Camera, rect, preview_scale: float, budget_ms: float = 60.0) -> None:
-        """New view/material/setting: everything must be gathered again, preview first."""
+    def restart(self, camera: Camera, rect, preview_scale: float, budget_ms: float = 60.0,
+                passes: int = 1) -> None:
+        """New view/material/setting: everything must be gathered again, preview first, then
+        ``passes`` jittered passes of tiles."""
+        self.passes, self.pass_index = max(int(passes), 1), 0
+        self._sum = self._hits = None
         if preview_scale != self.preview_scale:
             self.preview_scale = self.effective_scale = float(preview_scale)
         same_size = self.full is not None and self.full.shape[:2] == (camera.height, camera.width)
@@ -233,6 +255,9 @@ class ProgressiveGI:
             self._preview(budget_ms)
             changed = True
         anchor = None
+        if allow_tiles and not self._bands and self._cells_total and \
+                self.pass_index + 1 < self.passes:
+            self._next_pass(budget_ms)
         while allow_tiles and self._bands:
             elapsed = (self.clock() - start) * 1e3
             if changed and elapsed + self._cell_ms() > budget_ms:
@@ -249,9 +274,21 @@ class ProgressiveGI:
             self._estimate()
         return changed
 
+    def _next_pass(self, budget_ms: float) -> None:
+        """The layer is complete: run its tiles again, one pass further (see the docstring)."""
+        x, y, w, h = self.rect
+        if self._sum is None:            # pass 0's image, unpremultiplied by construction
+            hit = self.full[y:y + h, x:x + w, GI_TEXEL.index("status")] > 0.5
+            self._hits = hit.astype(np.float32)
+            self._sum = self.full[y:y + h, x:x + w, :3] * self._hits[..., None]
+        self.pass_index += 1
+        self._bands = strip_tiles(self.rect, self.cell_size(budget_ms))
+        self._cells_total = sum(len(b) for b in self._bands)
+        self._cells_done = 0
+
     def _estimate(self) -> None:
         """Smooth the total wall time the refinement takes, from the rate so far."""
-        p = self._cells_done / self._cells_total
+        p = self.progress
         if p < ETA_MIN_FRACTION or self._wall < ETA_MIN_S:
             return
         total = self._wall / p
@@ -336,9 +373,24 @@ class ProgressiveGI:
         w = run[-1][0] + run[-1][2] - x0
         h = run[0][3]
         t0 = self.clock()
-        img = self.render(self.camera, (x0, y0, w, h))
+        if self.pass_index == 0:
+            img = self.render(self.camera, (x0, y0, w, h))
+        else:
+            img = self.render(self.camera, (x0, y0, w, h), pass_index=self.pass_index)
         self._learn((self.clock() - t0) * 1e3, img)
-        self.full[y0:y0 + h, x0:x0 + w] = img
+        if self.pass_index == 0:
+            self.full[y0:y0 + h, x0:x0 + w] = img
+        else:                            # the mean over the passes that saw the asset
+            rx, ry = x0 - self.rect[0], y0 - self.rect[1]
+            hit = (img[..., GI_TEXEL.index("status")] > 0.5).astype(np.float32)
+            sums = self._sum[ry:ry + h, rx:rx + w]
+            hits = self._hits[ry:ry + h, rx:rx + w]
+            sums += img[..., :3] * hit[..., None]
+            hits += hit
+            out = self.full[y0:y0 + h, x0:x0 + w]
+            seen = hits > 0
+            out[..., :3][seen] = sums[seen] / hits[seen][:, None]
+            out[..., GI_TEXEL.index("status")][seen] = 1.0
         self.dirty_rects.append((x0, y0, w, h))
         del band[:cells]
         if not band:

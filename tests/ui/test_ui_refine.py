@@ -314,3 +314,44 @@ def test_a_slow_machine_hears_minutes():
     (7200.0, "about 2 h left")])
 def test_time_left_words_are_rounded_coarsely(seconds, words):
     assert time_left_words(seconds) == words
+
+
+def test_idle_passes_average_the_jittered_renders_of_the_asset():
+    """With passes, the complete layer is re-rendered pass by pass (pass_index 1, 2, ...) and
+    each texel shows the mean radiance of the passes that saw the asset (unpremultiplied:
+    a texel the asset covered in one pass of three shows that pass's radiance)."""
+    calls = []
+
+    def render(camera, tile, pass_index=0):
+        calls.append(pass_index)
+        img = sphere_image(camera, tile)
+        img[..., :3] = float(pass_index + 1)          # pass k renders radiance k + 1
+        if pass_index == 2:                         # the asset grows by a column in pass 2
+            img[:, -1:, 3] = 1.0
+        return img
+    gi = ProgressiveGI(render)
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.25, budget_ms=5, passes=3)
+    gi.step(5)
+    assert gi.pass_index == 0
+    while gi.refining:
+        gi.step(1e9)
+    assert gi.pass_index == 2 and gi.progress == 1.0 and gi.status_words() == "converged"
+    assert set(calls) == {0, 1, 2}
+    inside = sphere_image(CAM, (0, 0, CAM.width, CAM.height))[..., 3] > 0
+    np.testing.assert_allclose(gi.full[inside][:, :3], 2.0)          # (1 + 2 + 3) / 3
+    x, y, w, h = rect
+    grown = (gi.full[..., 3] > 0.5) & ~inside
+    assert grown.any()
+    np.testing.assert_allclose(gi.full[grown][:, :3], 3.0)           # seen by pass 2 only
+
+
+def test_passes_restart_from_pass_zero_when_the_view_changes():
+    gi = ProgressiveGI(lambda camera, tile, pass_index=0: sphere_image(camera, tile))
+    rect = screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS)
+    gi.restart(CAM, rect, 0.25, budget_ms=5, passes=4)
+    while gi.pass_index < 2:
+        gi.step(1e9)
+    assert gi.pass_index == 2 and "(pass 3 of 4)" in gi.status_words()
+    gi.restart(CAM, rect, 0.25, budget_ms=5, passes=4)
+    assert gi.pass_index == 0 and gi.progress == 0.0 and gi.refining

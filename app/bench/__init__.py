@@ -6,4 +6,5 @@ BENCHES = {
     "classic": "app.bench.classic",
     "table3": "app.bench.table3",
     "expand": "app.bench.expand",
+    "glossy": "app.bench.glossy",
 }

@@ -1,0 +1,107 @@
+"""Glossy and mirror materials against path-traced references (the reference protocol,
+app/bench/mitsuba_scene.py; the references are committed, made by tests/pbgi/make_references.py).
+
+The scene is app/bench/glossy.py's: a sphere lit only by a 100k-point room made from a real
+panorama (../shared/data/apartment.exr), 96 x 96 px, M = 24, default settings. The BRDF
+conventions (app/bench/mitsuba_scene.py: CONVENTIONS) agree for metals term by term; for
+dielectrics Mitsuba's exact dielectric Fresnel and Burley 2015 diffuse differ from the 2012
+model at grazing angles, which the tolerances allow (measured 3% pooled at most).
+
+Before the lobe micro-buffers these failed: metal roughness 0 and 0.05 at 121% / 1156%
+(Classic / Hybrid), roughness 0.1 at 29% / 54% with a periodic peak of 1355.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.bench import glossy
+from app.bench.image_metrics import erode, peak_ratio, periodic_peak, relative_rmse
+
+ROOM = Path(glossy.ROOM)
+pytestmark = pytest.mark.skipif(not ROOM.exists(), reason="../shared/data not present")
+
+TARGET = {"smooth": 0.15, "glossy": 0.10}      # 4x4-pooled relative RMSE (the issue's targets)
+PEAK_LIMIT = 150.0        # periodic_peak: a dot grid measured 1355, noise 8-60 after
+PEAK_RATIO_LIMIT = 2.0    # largest pixel over the reference's: the dots were 20x
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    from app.pbgi.renderer import Relighter
+    cloud, mesh, cam = glossy.glossy_scene(ROOM)
+    r = Relighter()
+    r.set_cloud(cloud)
+    r.set_asset(mesh)
+    yield r, cam
+    r.release()
+
+
+def test_the_references_are_what_the_sweep_renders():
+    index = glossy.load_index()
+    assert index["scene"]["points"] == glossy.POINTS and index["scene"]["size"] == glossy.SIZE
+    for kind in glossy.KINDS:
+        for r in glossy.ROUGHNESS:
+            entry = index["references"][glossy.reference_name(ROOM.stem, kind, r)]
+            assert entry["noise_rel_rmse_4x4"] < 0.02       # the references' own noise floor
+            ref = glossy.load_reference(ROOM.stem, kind, r)
+            assert ref.shape == (glossy.SIZE, glossy.SIZE, 3) and np.isfinite(ref).all()
+
+
+@pytest.mark.parametrize("mode", ["classic", "hybrid"])
+@pytest.mark.parametrize("kind", glossy.KINDS)
+def test_roughness_sweep_matches_the_path_tracer(sweep, mode, kind):
+    """Every roughness from the mirror to 1: pooled error within the target, no periodic
+    pattern, no pixel far brighter than the reference's brightest, a completed render."""
+    from app.pbgi.renderer import RenderParams
+    rl, cam = sweep
+    rows = []
+    for r in glossy.ROUGHNESS:
+        res = rl.render(cam, [glossy.material(kind, r)], RenderParams(mode=mode, microbuffer=24))
+        err = glossy.evaluate(res.image, glossy.load_reference(ROOM.stem, kind, r))
+        rows.append((r, err, res.stats))
+    for r, err, stats in rows:
+        target = TARGET["glossy" if r >= 0.05 else "smooth"]
+        where = f"{mode} {kind} roughness {r}: {err}"
+        assert stats.completed, where
+        assert err["rel_rmse_4x4"] <= target, where
+        assert err["periodic_peak"] <= PEAK_LIMIT, where
+        assert err["peak_ratio"] <= PEAK_RATIO_LIMIT, where
+
+
+def test_the_artefact_detector_fails_a_dot_grid_and_passes_noise():
+    """periodic_peak sees a regular grid of bright dots (the old failure) and not white noise of
+    ten times the energy; peak_ratio sees a single 20x dot and not noise of 15%."""
+    rng = np.random.default_rng(1)
+    ref = np.full((96, 96, 3), 1.0, np.float32)
+    mask = np.ones((96, 96), bool)
+    grid = ref.copy()
+    grid[::6, ::6] += 2.0
+    noisy = ref + rng.normal(0.0, 0.6, ref.shape).astype(np.float32)
+    assert periodic_peak(grid, ref, mask) > 10 * PEAK_LIMIT
+    assert periodic_peak(noisy, ref, mask) < PEAK_LIMIT
+    dot = ref.copy()
+    dot[40, 40] = 20.0
+    assert peak_ratio(dot, ref, mask) > 5 * PEAK_RATIO_LIMIT
+    assert peak_ratio(ref + 0.15 * (noisy - ref) / 0.6, ref, mask) < PEAK_RATIO_LIMIT
+    square = np.zeros((96, 96), bool)
+    square[10:20, 10:20] = True
+    assert relative_rmse(ref, ref, mask, 4) == 0.0 and erode(square, 2).sum() == 6 * 6
+
+
+def test_passes_anti_alias_the_mirror(sweep):
+    """The mirror's per-pixel error is mostly aliasing (the reference is box-filtered over the
+    pixel): 8 jittered passes at least halve it (measured 31% -> 12%; 16 passes 9%)."""
+    from app.pbgi.renderer import RenderParams
+    rl, cam = sweep
+    mat = glossy.material("metal", 0.0)
+    ref = glossy.load_reference(ROOM.stem, "metal", 0.0)
+    one = glossy.evaluate(rl.render(cam, [mat], RenderParams(mode="hybrid")).image, ref)
+    many = rl.render_passes(cam, [mat], RenderParams(mode="hybrid"), 8)
+    assert many.stats.passes == 8 and many.stats.completed
+    mask = erode(many.image[..., 3] > 0.999, 1)
+    e1 = relative_rmse(many.image, ref, mask, 1)
+    assert e1 < 0.5 * one["rel_rmse"], (e1, one)

@@ -78,6 +78,7 @@ void main() {
     bvec2 terms = lobe_terms(Q, u_glossy_below);
     bool lobed = any(terms) && Q.n_dot_v > 0.0;
     LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, u_rings, u_sectors);
+    float spec_share = lobe_spec_share(Q, u_glossy_below);
 #endif
     uint k;
     for (k = 0u; k < mm; ++k) {
@@ -102,7 +103,7 @@ void main() {
         vec3 fb, fs, fc;
         principled_lobes_prepared(Q, w, fb, fs, fc);
         if (lobed && lobe_inside(F, w)) {       // those lobes come from the lobe buffer
-            if (terms.x) fs = vec3(0.0);
+            if (terms.x) fs *= 1.0 - spec_share;
             if (terms.y) fc = vec3(0.0);
         }
         sum += (fb + fs + fc) * L * weight;
@@ -129,7 +130,7 @@ void main() {
 #endif
             vec3 fb, fs, fc;
             principled_lobes_prepared(Q, w, fb, fs, fc);
-            vec3 f = (terms.x ? fs : vec3(0.0)) + (terms.y ? fc : vec3(0.0));
+            vec3 f = (terms.x ? spec_share * fs : vec3(0.0)) + (terms.y ? fc : vec3(0.0));
             sum += f * L * (omega * dot(N, w));
         }
         complete = complete && k == cells;

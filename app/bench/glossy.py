@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from app.bench.records import record
+from app.commands.options import add_param_options, param_values
 from app.errors import ScanlightError, UsageError
 
 log = logging.getLogger(__name__)
@@ -121,10 +122,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--kinds", default=",".join(KINDS), help="metal,dielectric")
     parser.add_argument("--modes", default="classic,mipmapped,hybrid",
                         help="render modes (default classic,mipmapped,hybrid)")
-    parser.add_argument("--microbuffer", type=int, default=24, help="M (default 24)")
     parser.add_argument("--repeat", type=int, default=2, help="runs per case, the fastest kept")
     parser.add_argument("--before", action="store_true",
                         help="also the cosine micro-buffer alone (glossy_below 0)")
+    add_param_options(parser, "bench glossy")     # --microbuffer
 
 
 def run(args) -> list[dict]:
@@ -139,9 +140,7 @@ def run(args) -> list[dict]:
     if not modes or any(m not in RENDER_MODES for m in modes):
         raise UsageError(None, f"--modes must be among {', '.join(RENDER_MODES)}, "
                                f"got {args.modes!r}")
-    mp = BY_KEY["pbgi.microbuffer"]
-    if not mp.lo <= args.microbuffer <= mp.hi:
-        raise UsageError(None, f"--microbuffer must be in [{mp.range_text()}]")
+    m = param_values(args, "bench glossy")["pbgi.microbuffer"]
     if args.repeat < 1:
         raise UsageError(None, "--repeat must be >= 1")
     room = Path(args.room).stem
@@ -160,13 +159,13 @@ def run(args) -> list[dict]:
     if args.before:
         variants.append(("cosine only", 0.0))
     for mode in modes:                  # compile and warm every program before timing
-        rl.render(cam, [material("metal", 0.1)], RenderParams(mode=mode, microbuffer=args.microbuffer))
+        rl.render(cam, [material("metal", 0.1)], RenderParams(mode=mode, microbuffer=m))
 
     def frame(mode, mat, gb):
         best = None
         for _ in range(args.repeat):
             rl.forget_microbuffers()
-            res = rl.render(cam, [mat], RenderParams(mode=mode, microbuffer=args.microbuffer,
+            res = rl.render(cam, [mat], RenderParams(mode=mode, microbuffer=m,
                                                      glossy_below=gb))
             if best is None or res.stats.ms < best.stats.ms:
                 best = res

@@ -40,6 +40,7 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
                             "pbgi.parallax_tolerance")),
     "bench classic": _flags(("pbgi.memory_budget_mb",)),
+    "bench glossy": _flags(("pbgi.microbuffer",)),
     "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed"),
                            {"hdr.poisson_solver": "--solver"}),
 }

@@ -18,6 +18,8 @@ the wide lobes (diffuse, subsurface, sheen) and the specular lobe outside the lo
 the sphere of directions is split, not counted twice. Roughness -> 0 needs no separate mirror
 path: the micro-pixels shrink into the reflection direction and all see the leaf the reflected
 ray hits, continuously in roughness (the warp's alpha stops at 1e-3, the BRDF's own minimum).
+Towards ``glossy_below`` the specular lobe is shared between the two buffers over a blend
+(lib/lobe.glsl: lobe_spec_share), so the roughness slider shows no seam where the method changes.
 
 Each receiver's frame is rotated by a random azimuth and each micro-pixel's ray is jittered
 inside it (per pixel and ``pass``), so what quantisation remains is noise, never a grid; passes

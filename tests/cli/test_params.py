@@ -27,6 +27,7 @@ MINIMAL = {
     "bench table3": ["bench", "table3"],
     "bench classic": ["bench", "classic"],
     "bench expand": ["bench", "expand"],
+    "bench glossy": ["bench", "glossy"],
 }
 
 

@@ -5,7 +5,8 @@
 // times the smallest lobe micro-pixel it covers (a narrow lobe descends to the leaves near the
 // reflection and stays coarse away from it), or when it is a leaf; accepted nodes are ray cast
 // through every micro-pixel of their ring x sector rectangle (mb_hit_key: the ray against the
-// node's disc, so a leaf larger than a micro-pixel is a closed surface, not one dot), depth
+// node's disc, a leaf's grown by the scan's point spacing, so a leaf larger than a micro-pixel is
+// a closed surface, not one dot), depth
 // tested. The same walk serves every mode (Classic, Mipmapped, Hybrid): only the cosine
 // micro-buffer differs between them.
 //
@@ -82,7 +83,13 @@ void main() {
         BshSphere s = tnode_sphere(node);
         BshLink link = tnode_link(node);
         bool leaf = (link.count_flags & BSH_TEX_LEAF_BIT) != 0u;
-        if (leaf) s.radius = max(s.radius, u_leaf_radius);   // ray cast as the scan's disc
+        // Every point is a disc of u_leaf_radius (the scan's surface), so a leaf - a cluster of
+        // points - is ray cast as a disc of its sphere's radius + u_leaf_radius, and the culls of
+        // an inner node bound its points' discs the same way; with the sphere alone a narrow
+        // lobe loses the disc edges that stick out of it: holes in a mirror. The cut's
+        // acceptance compares an inner node's own sphere.
+        s.radius += u_leaf_radius;
+        float own_r = leaf ? s.radius : s.radius - u_leaf_radius;
         vec3 dv = s.center - p;
         float d2 = dot(dv, dv);
         float r2 = s.radius * s.radius;
@@ -108,8 +115,14 @@ void main() {
                 if (rect == 0xFFFFFFFFu) {
                     next = link.skip;                      // outside the lobe's domain
                 } else {
-                    float omega = TWO_PI * sin_b2 / (1.0 + cos_b);
+                    float sin_o2 = min(own_r * own_r / d2, 1.0);
+                    float omega = TWO_PI * sin_o2 / (1.0 + sqrt(1.0 - sin_o2));
                     accept = leaf || omega <= u_stop_factor * om_min;
+                    if (accept && !leaf) {                 // drawn as its own sphere
+                        float sin_o = sqrt(sin_o2), om;
+                        rect = lobe_rect(F, dv * inv_d, sin_o, sqrt(1.0 - sin_o2), om);
+                        if (rect == 0xFFFFFFFFu) { accept = false; next = link.skip; }
+                    }
                 }
             }
         } else if (leaf) {                                 // receiver inside a leaf
@@ -137,8 +150,10 @@ void main() {
     for (it = 0u; it < cost; ++it) {
         if (load) {
             nd = cut_node(cut_list_node[k], p, u_inv_cell_area);
-            if ((tnode_link(nd.index).count_flags & BSH_TEX_LEAF_BIT) != 0u)
-                nd.r2 = max(nd.r2, u_leaf_radius * u_leaf_radius);
+            if ((tnode_link(nd.index).count_flags & BSH_TEX_LEAF_BIT) != 0u) {
+                float r = sqrt(nd.r2) + u_leaf_radius;
+                nd.r2 = r * r;
+            }
             rect = cut_list_rect[k];
             cells = lobe_rect_cells(rect);
             n = 0u;

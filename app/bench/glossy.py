@@ -14,7 +14,8 @@ one pixel: a pixel on the rim mixes the room behind it in the reference): ``rel_
 ``rel_rmse_4x4`` pooled, ``flip`` (HDR-FLIP, NaN without ``flip-evaluator``), ``periodic_peak``
 (the artefact detector) and ``peak_ratio`` (largest pixel over the reference's). ``--before``
 adds the same cases with ``glossy_below`` 0: the cosine micro-buffer alone, the renderer before
-the lobe micro-buffers.
+the lobe micro-buffers. ``--images`` writes them side by side with the references (the README's
+docs/glossy_sweep.png).
 """
 
 from __future__ import annotations
@@ -125,6 +126,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--repeat", type=int, default=2, help="runs per case, the fastest kept")
     parser.add_argument("--before", action="store_true",
                         help="also the cosine micro-buffer alone (glossy_below 0)")
+    parser.add_argument("--images", metavar="PNG",
+                        help="also write a contact sheet: per material kind, rows reference / "
+                             "lobe (this renderer) / cosine only (before), columns roughness, "
+                             "in the first mode")
     add_param_options(parser, "bench glossy")     # --microbuffer
 
 
@@ -171,7 +176,7 @@ def run(args) -> list[dict]:
                 best = res
         return best
 
-    records = []
+    records, sheet = [], {}
     for mode in modes:
         diffuse_ms = frame(mode, material("dielectric", 1.0), 0.0).stats.ms
         for name, gb in variants:
@@ -179,6 +184,9 @@ def run(args) -> list[dict]:
                 for r in rough:
                     res = frame(mode, material(kind, r), gb)
                     ref = load_reference(room, kind, r, args.references)
+                    if mode == modes[0]:
+                        sheet[(kind, "reference", r)] = ref
+                        sheet[(kind, name, r)] = res.image[..., :3]
                     err = evaluate(res.image, ref)
                     noise = index["references"][reference_name(room, kind, r)]
                     records.append(record("glossy", {"room": room, "variant": name,
@@ -191,4 +199,23 @@ def run(args) -> list[dict]:
                     log.info("%s %s %s r=%g: %.0f ms, %.1f%% (4x4)", name, mode, kind, r,
                              res.stats.ms, 100 * err["rel_rmse_4x4"])
     rl.release()
+    if args.images:
+        write_sheet(args.images, sheet, kinds, [("reference", None)] + variants, rough)
     return records
+
+
+def write_sheet(path, images: dict, kinds, variants, roughness) -> None:
+    """One PNG: a row per (kind, variant), a column per roughness, tone mapped alike (PBR
+    Neutral, exposure from the references' 99th percentile)."""
+    from app.io.images import write_png
+    from app.render.tonemap import tonemap_to_srgb8
+    rows = []
+    for kind in kinds:
+        refs = [images[(kind, "reference", r)] for r in roughness]
+        ev = -float(np.log2(max(np.percentile(np.concatenate([x.ravel() for x in refs]), 99),
+                                1e-6)))
+        for name, _ in variants:
+            if (kind, name, roughness[0]) in images:
+                rows.append(np.concatenate([tonemap_to_srgb8(images[(kind, name, r)], ev)
+                                            for r in roughness], axis=1))
+    write_png(path, np.concatenate(rows, axis=0))

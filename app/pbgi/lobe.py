@@ -66,14 +66,15 @@ class LobeSettings:
     @staticmethod
     def for_microbuffer(m: int, glossy_below: float, pass_index: int = 0) -> "LobeSettings":
         """LOBE_SIDE_FRACTION x M rings and sectors. The warp already puts every micro-pixel
-        inside the lobe, so fewer are needed than the cosine buffer's M x M: against Mitsuba
-        (apartment room, metal r = 0.02-0.3, M = 24) 16 x 16 was within 1 point of 24 x 24 in
-        pooled error at half the lobe walk's work."""
+        inside the lobe, so fewer are needed than the cosine buffer's M x M, and the lobe walk's
+        work grows with them: against Mitsuba (apartment room, M = 24, Hybrid) 12 x 12 was
+        within 0.6 points of 16 x 16 in pooled error (metal r = 0, 0.1, 0.3; dielectric 0.3)
+        at 60% of the lobe walk's time, and 16 x 16 within 1 point of 24 x 24 at half of it."""
         side = max(LOBE_MIN_SIDE, int(round(LOBE_SIDE_FRACTION * m)))
         return LobeSettings(side, side, float(glossy_below), int(pass_index))
 
 
-LOBE_SIDE_FRACTION = 2.0 / 3.0
+LOBE_SIDE_FRACTION = 0.5
 LOBE_MIN_SIDE = 8
 
 
@@ -161,7 +162,8 @@ class LobeBuffers:
     def fill(self, settings: LobeSettings, receivers, materials, first: int, count: int,
              capacity: int, nodes, cell_size: float, camera_rel, leaf_radius: float) -> dict:
         """Walk and ray cast the lobe micro-buffers of receivers [first, first + count);
-        leaves are discs of at least ``leaf_radius`` (surface_radius of the cloud)."""
+        each point is a disc of ``leaf_radius`` (surface_radius of the cloud), so a leaf is a disc
+        of its sphere's radius + leaf_radius."""
         if self.splat_budget < settings.cells:
             raise ValueError("splat budget must cover one whole lobe micro-buffer")
         self._prepare(settings.cells, capacity, count)

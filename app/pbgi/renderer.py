@@ -293,6 +293,12 @@ class Relighter:
         stats.ms, stats.mb = (t2 - t0) * 1e3, max(extra, gb["bytes"]) / MB
         return RenderResult(image, stats)
 
+    @property
+    def lobe_buffers(self):
+        """The last render's lobe micro-buffers (app/pbgi/lobe.py; None before any glossy
+        material): rows in the order of ``last_receivers`` (tests, debugging)."""
+        return self._lobe
+
     def render_passes(self, camera, materials=None, params: RenderParams | None = None,
                       passes: int = 1, tile=None, progress=None) -> RenderResult:
         """The mean of ``passes`` renders (pass_index 0 .. passes - 1): anti-aliased pixels

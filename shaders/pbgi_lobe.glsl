@@ -103,12 +103,8 @@ void main() {
             float sin_b = s.radius * inv_d;
             float sin_b2 = sin_b * sin_b;
             float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
-            BshCone cone = tnode_cone(node);
-            float sin_a = sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0));
-            float cos_ab = cone.cos_angle * cos_b - sin_a * sin_b;
-            float sin_ab = sin_a * cos_b + cone.cos_angle * sin_b;
             float om_min;
-            if (cos_ab > 0.0 && dot(dv, cone.axis) * inv_d > sin_ab) {
+            if (cut_back_facing(tnode_cone(node), dv * inv_d, sin_b, cos_b)) {
                 next = link.skip;                          // back-facing (Fig. 5)
             } else {
                 rect = lobe_rect(F, dv * inv_d, sin_b, cos_b, om_min);

@@ -29,6 +29,16 @@
 #define CUT_LIST_CAP 64
 #endif
 
+// Paper Fig. 5: does every point of a node seen in direction l (unit) within angle b (sin_b,
+// cos_b) face away from the receiver? Its normals lie within the cone's half-angle alpha of the
+// axis, so all of them do when the angle between -l and the axis exceeds alpha + b.
+bool cut_back_facing(BshCone cone, vec3 l, float sin_b, float cos_b) {
+    float sin_a = sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0));
+    float cos_ab = cone.cos_angle * cos_b - sin_a * sin_b;     // cos(alpha + b)
+    float sin_ab = sin_a * cos_b + cone.cos_angle * sin_b;     // sin(alpha + b)
+    return cos_ab > 0.0 && dot(l, cone.axis) > sin_ab;
+}
+
 // Decision for node A seen from receiver (p, N) with micro-buffer frame (T, B, N); ``rect`` is
 // the micro-pixel rectangle to rasterise when the answer is CUT_ACCEPT, ``skip`` the node after
 // A's sub-tree.
@@ -49,11 +59,7 @@ uint cut_decide(uint node, vec3 p, vec3 N, vec3 T, vec3 B, float omega_stop,
         float sin_b = s.radius * inv_d;
         float sin_b2 = sin_b * sin_b;
         float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
-        BshCone cone = tnode_cone(node);
-        float sin_a = sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0));
-        float cos_ab = cone.cos_angle * cos_b - sin_a * sin_b;     // cos(alpha + b)
-        float sin_ab = sin_a * cos_b + cone.cos_angle * sin_b;     // sin(alpha + b)
-        if (cos_ab > 0.0 && dot(dv, cone.axis) * inv_d > sin_ab) return CUT_SKIP;  // Fig. 5
+        if (cut_back_facing(tnode_cone(node), dv * inv_d, sin_b, cos_b)) return CUT_SKIP;
         float omega = TWO_PI * sin_b2 / (1.0 + cos_b);
         float limit = abs(h) < s.radius ? omega_horizon : omega_stop;
         if (leaf || omega <= limit) {

@@ -76,6 +76,39 @@ def test_render_matches_the_api(inputs):
     assert np.allclose(cli, api, rtol=1e-5, atol=1e-6)
 
 
+def test_render_passes_average_jittered_renders(inputs, capsys):
+    """--passes N writes the mean of Relighter.render_passes (N jittered passes): its stats say
+    so, the silhouette's pixels are partly covered (anti-aliased), and the background composite
+    treats the mean as premultiplied by its coverage (straight alpha would darken the fringe)."""
+    from app.pbgi.renderer import Relighter, RenderParams
+    d = inputs
+    assert main(_args(d, "--microbuffer", "8", "--passes", "4", "--stats", str(d / "st.json"),
+                      "--background", "--size", "32x24")) == 0
+    assert "4 passes" in capsys.readouterr().out
+    stats = json.loads((d / "st.json").read_text())
+    assert stats["passes"] == 4 and stats["completed"] is True
+    four = read_exr(d / "out.exr").rgb
+    assert main(_args(d, "--microbuffer", "8", "--background", "--size", "32x24")) == 0
+    one = read_exr(d / "out.exr").rgb
+    assert np.isfinite(four).all() and four.shape == one.shape
+    r = Relighter()
+    from app.io.pointcloud import load_cloud
+    from app.cloud import PointCloud
+    from app.io.formats import load_object, placed_mesh
+    from app.camera import load_camera
+    from app.material import load_material
+    from dataclasses import replace
+    c = load_cloud(d / "room.ply")
+    r.set_cloud(PointCloud(c.positions, c.normals, c.colors, hdr=True))
+    r.set_asset(placed_mesh(load_object(d / "obj.json")))
+    cam = replace(load_camera(d / "cam.json"), width=32, height=24)
+    res = r.render_passes(cam, [load_material(d / "mat.json")], RenderParams(microbuffer=8), 4)
+    a = res.image[..., 3]
+    assert ((a > 0) & (a < 1)).any() and set(np.unique(a)) <= {0.0, 0.25, 0.5, 0.75, 1.0}
+    expect = res.image[..., :3] + r.background(cam)[..., :3] * (1.0 - a[..., None])
+    np.testing.assert_allclose(four, expect, rtol=1e-4, atol=1e-6)
+
+
 def _scanlight(*args):
     return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True,
                           timeout=600)

@@ -16,7 +16,8 @@
 // With LOBE_BUFFER the receivers whose specular or clearcoat lobe is too narrow for the cosine
 // micro-buffer (lib/lobe.glsl: lobe_terms) gather those lobes from their lobe micro-buffer instead,
 // each micro-pixel weighted by f cos(theta) times its own solid angle; the cosine loop then
-// leaves them out inside the lobe's domain (lobe_inside), so the two loops split the directions.
+// leaves them out inside the lobe's domain (lobe_inside), so the two loops split the directions -
+// except the specular lobe near glossy_below, which the two share (lobe_spec_share).
 // Output per tile pixel: GatherOutput (L_out, status 1; -1 marks a gather loop the driver cut
 // short).
 #include "lib/common.glsl"
@@ -24,6 +25,7 @@
 #include "gen/receivers.glsl"
 #include "gen/materials.glsl"
 #include "gen/gather_output.glsl"
+#include "lib/receiver_shading.glsl"
 #include "lib/bsh_textures.glsl"
 #include "lib/microbuffer.glsl"
 #ifdef LOBE_BUFFER
@@ -54,15 +56,9 @@ void main() {
     uint rid = u_first + i;
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
-    vec3 tangent = receiver_tangent(rid);
-    PrincipledParams P = receiver_principled(rid);
-
-    vec3 V = normalize(u_camera - p);
-    vec3 X = tangent - N * dot(N, tangent);
+    PrincipledPrepared Q = receiver_prepared(rid, p, N, u_camera);
     vec3 T, B;
     orthonormal_basis(N, T, B);          // the micro-buffer frame
-    X = dot(X, X) > 1e-12 ? normalize(X) : T;
-    vec3 Y = cross(N, X);
 #ifdef FRAME_NORMALS
     vec3 A = frame_normal(i);
     orthonormal_basis(A, T, B);
@@ -71,7 +67,6 @@ void main() {
     vec3 A = N;
 #endif
 
-    PrincipledPrepared Q = principled_prepare(P, V, N, X, Y);
     uint mm = mb_entries();
     vec3 sum = vec3(0.0);
 #ifdef LOBE_BUFFER

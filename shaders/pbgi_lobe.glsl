@@ -22,6 +22,7 @@
 #include "gen/receivers.glsl"
 #include "gen/materials.glsl"
 #include "gen/walk_state.glsl"
+#include "lib/receiver_shading.glsl"
 
 #ifndef LIST_CAP
 #define LIST_CAP 256
@@ -64,13 +65,7 @@ void main() {
     uint rid = u_first + i;
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
-    vec3 tangent = receiver_tangent(rid);
-    vec3 V = normalize(u_camera - p);
-    vec3 X = tangent - N * dot(N, tangent);
-    vec3 T0, B0;
-    orthonormal_basis(N, T0, B0);
-    X = dot(X, X) > 1e-12 ? normalize(X) : T0;
-    PrincipledPrepared Q = principled_prepare(receiver_principled(rid), V, N, X, cross(N, X));
+    PrincipledPrepared Q = receiver_prepared(rid, p, N, u_camera);
     bvec2 terms = lobe_terms(Q, u_glossy_below);
     if (!any(terms) || Q.n_dot_v <= 0.0) {
         state[i] = ClassicState(end, st.visited, st.flags | WALK_DONE, st.tests);

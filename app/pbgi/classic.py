@@ -13,12 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.pbgi.gpu_layout import CLASSIC_STATE, SSBO, WALK_CUT_SHORT, dispatch_groups
+from app.pbgi.gpu_layout import (CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT,
+                                 dispatch_groups)
 from app.pbgi.microbuffer import entries, omega_micro
 from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
-
-LOOP_LIMIT = 65535            # llvmpipe: loop iterations per invocation, all loops together
 
 
 class ClassicCut(CutFinder):

@@ -90,6 +90,10 @@ for _w in (BSH_TEX_WIDTH, MIP_WIDTH):
     assert _w & (_w - 1) == 0, "image widths are powers of two (texel = (i & (W-1), i >> log2 W))"
 
 
+LOOP_LIMIT = 65535   # llvmpipe: loop iterations per invocation, all loops together, past which
+                     # it leaves the shader silently (every bounded walk stays below it)
+
+
 def dispatch_groups(n: int) -> int:
     """Work groups for one invocation per item (``WORKGROUP`` invocations each)."""
     return (int(n) + WORKGROUP - 1) // WORKGROUP

@@ -35,11 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.pbgi.gpu_layout import (CLASSIC_STATE, IMAGE, MB_ENTRY, SSBO, WALK_CUT_SHORT,
-                                 dispatch_groups)
+from app.pbgi.gpu_layout import (CLASSIC_STATE, IMAGE, LOOP_LIMIT, MB_ENTRY, SSBO,
+                                 WALK_CUT_SHORT, dispatch_groups)
 from app.render.programs import load_compute
-
-LOOP_LIMIT = 65535
 
 
 @dataclass(frozen=True)

@@ -50,14 +50,14 @@ import numpy as np
 
 from app.pbgi.gmip import PIXEL_BYTES, WIDTH, MipPyramid, image_rows, to_rows, z_order
 from app.pbgi.gpu_layout import (FINISH_STATE, HEAD, IMAGE, ITEM, NIL, PAIR, PAIR_COUNTERS,
-                                 RECEIVER, SSBO, WALK_CUT_SHORT, WALK_DONE, dispatch_groups)
+                                 LOOP_LIMIT, RECEIVER, SSBO, WALK_CUT_SHORT, WALK_DONE,
+                                 dispatch_groups)
 from app.pbgi.microbuffer import entries, omega_micro
 from app.pbgi.modebase import (AllocationError, Batch, CutFigures, CutFinder, MicroBufferMode,
                                RenderParams)
 from app.pbgi.stats import PairFigures
 from app.render.programs import load_compute
 
-LOOP_LIMIT = 65535
 COUNTER_WORDS = PAIR_COUNTERS.words
 PAIR_BYTES = PAIR.nbytes
 ITEM_BYTES = ITEM.nbytes

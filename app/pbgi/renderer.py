@@ -105,7 +105,7 @@ class Relighter:
         self._env_key = None
         self.last_receivers = None
         self._lobe = None                  # LobeBuffers, made on the first glossy render
-        self.leaf_radius = 0.0             # the cloud's surface_radius (lobe ray casts)
+        self._geo_key = None               # the cloud's geometry fingerprint
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -129,9 +129,7 @@ class Relighter:
             _BSH_CACHE[geo_key] = (col_key, hierarchy)
         old_origin = None if self.hierarchy is None else self.hierarchy.origin
         self.cloud, self.hierarchy = cloud, hierarchy
-        if _RADIUS_CACHE.get("key") != geo_key:
-            _RADIUS_CACHE.update(key=geo_key, radius=surface_radius(cloud.positions))
-        self.leaf_radius = _RADIUS_CACHE["radius"]
+        self._geo_key = geo_key
         if self.nodes_buf is not None:
             self.nodes_buf.release()
         self.nodes_buf = self.ctx.buffer(np.ascontiguousarray(hierarchy.nodes).tobytes())
@@ -272,8 +270,10 @@ class Relighter:
                           nodes=self.node_tex, cell_size=self.hierarchy.cell_size,
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
-                          leaf_radius=self.leaf_radius)
+                          leaf_radius=self.leaf_radius if lobe is not None else 0.0)
             extra += self.mode_for(params).render(frame, stats)
+            if lobe is not None:
+                extra += self._lobe.nbytes
             t2 = time.perf_counter()
             out = GATHER_OUTPUT.view(bufs["output"].read()).reshape(h, w)
         finally:
@@ -294,6 +294,14 @@ class Relighter:
         return RenderResult(image, stats)
 
     @property
+    def leaf_radius(self) -> float:
+        """The cloud's surface_radius (app/pbgi/lobe.py: the disc each point is for the lobe
+        ray casts), computed on the first glossy render of a cloud's geometry, not at load."""
+        if _RADIUS_CACHE.get("key") != self._geo_key:
+            _RADIUS_CACHE.update(key=self._geo_key, radius=surface_radius(self.cloud.positions))
+        return _RADIUS_CACHE["radius"]
+
+    @property
     def lobe_buffers(self):
         """The last render's lobe micro-buffers (app/pbgi/lobe.py; None before any glossy
         material): rows in the order of ``last_receivers`` (tests, debugging)."""
@@ -310,7 +318,7 @@ class Relighter:
         for k in range(passes):
             res = self.render(camera, materials, params, tile=tile, pass_index=k)
             acc = res.image.astype(np.float64) if acc is None else acc + res.image
-            first = first or res.stats
+            first = res.stats if first is None else first
             ms += res.stats.ms
             completed &= res.stats.completed
             if progress is not None:

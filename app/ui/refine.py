@@ -43,8 +43,9 @@ at least every budget or so, instead of after a run that overshot it several tim
    mirror images are anti-aliased and the lobes' noise averages out. The compositor's
    silhouette comes from its own full-resolution G-buffer, so the mean is kept unpremultiplied.
 
-The render function is injected (``render(camera, tile[, pass_index]) -> (h, w, 4) float32`` GI_TEXEL texels:
-radiance, and 1 on the asset, 0 off it): the viewer passes the real PBGI renderer; tests check
+The render function is injected (``render(camera, tile, pass_index) -> (h, w, 4) float32``
+GI_TEXEL texels: radiance, and 1 on the asset, 0 off it): the viewer passes the real PBGI
+renderer; tests check
 the scheduling arithmetic with a fake clock (exact timings) and the tiling with the real
 renderer.
 """
@@ -324,7 +325,7 @@ class ProgressiveGI:
         x1 = min(int(math.ceil((rect[0] + rect[2]) * sx)) + 1, small.width)
         y1 = min(int(math.ceil((rect[1] + rect[3]) * sy)) + 1, small.height)
         t0 = self.clock()
-        lo = self.render(small, (x0, y0, x1 - x0, y1 - y0))
+        lo = self.render(small, (x0, y0, x1 - x0, y1 - y0), 0)
         ms = (self.clock() - t0) * 1e3
         self.last_preview_ms = ms
         self.preview = gi_image(small.height, small.width)
@@ -373,10 +374,7 @@ class ProgressiveGI:
         w = run[-1][0] + run[-1][2] - x0
         h = run[0][3]
         t0 = self.clock()
-        if self.pass_index == 0:
-            img = self.render(self.camera, (x0, y0, w, h))
-        else:
-            img = self.render(self.camera, (x0, y0, w, h), pass_index=self.pass_index)
+        img = self.render(self.camera, (x0, y0, w, h), self.pass_index)
         self._learn((self.clock() - t0) * 1e3, img)
         if self.pass_index == 0:
             self.full[y0:y0 + h, x0:x0 + w] = img

@@ -41,7 +41,7 @@ class Clock:
     def __call__(self):
         return self.t
 
-    def render(self, cam, tile):
+    def render(self, cam, tile, pass_index=0):
         self.calls.append((cam.width, tile))
         self.t += self.ms_per_px * tile[2] * tile[3] / 1e3
         return sphere_image(cam, tile)
@@ -110,9 +110,9 @@ def test_tiles_of_the_real_renderer_add_up_to_a_direct_render(ctx, demo):
     direct = r.render(cam, None, params).image
     tiles = []
 
-    def render(camera, tile):
+    def render(camera, tile, pass_index):
         tiles.append(tile)
-        return r.render(camera, None, params, tile=tile).image
+        return r.render(camera, None, params, tile=tile, pass_index=pass_index).image
     gi = ProgressiveGI(render)
     gi.restart(cam, screen_rect(cam, lo, hi), 0.25, budget_ms=1)
     while gi.refining:                    # a tiny frame budget: the smallest cells, one a frame

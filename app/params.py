@@ -197,6 +197,19 @@ PARAMS: tuple[Param, ...] = (
        "clearcoat) are gathered from a second micro-buffer warped to the lobe (glossy and "
        "mirror materials without dots); 0 = cosine micro-buffer only.", 0.0, 1.0, "",
        label="lobe buffer below", redo="gi"),
+    _b("pbgi.asset_occlusion", True, "The asset's own surface, sampled into surfels, in every "
+       "micro-buffer: it shadows the room for itself (self-occlusion) and carries the bounce "
+       "below. Off: the asset is lit as if it were alone and convex.",
+       label="asset self-occlusion", redo="gi"),
+    _i("pbgi.asset_bounces", 1, "Diffuse bounces the asset's surfels carry (inter-reflection: "
+       "the asset lights itself); 0 = occlusion only. Needs asset self-occlusion.", 0, 2, "",
+       label="asset bounces", redo="gi"),
+    _i("pbgi.asset_surfels", 8192, "Surfels the asset is sampled into (self-occlusion, bounce "
+       "and its shadow on the scan); more resolve smaller creases.", 1024, 262144, "",
+       label="asset surfels", redo="gi"),
+    _b("pbgi.differential", True, "Differential rendering: the scan's points near the asset get "
+       "its shadow and bounce (gathered with and without the asset, times the points' estimated "
+       "albedo) in the background composite.", label="shadow on the scan", redo="gi"),
     _i("pbgi.passes", 1, "Passes averaged in a final render (`scanlight render`): each samples "
        "every pixel at another point inside it (anti-aliased edges and mirror images) and "
        "rotates the lobe micro-buffers (their noise averages out); the time grows with them.",
@@ -356,7 +369,8 @@ def param_record(*keys: str):
 
 RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
                "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face",
-               "pbgi.glossy_below")
+               "pbgi.glossy_below", "pbgi.asset_occlusion", "pbgi.asset_bounces",
+               "pbgi.asset_surfels")
 EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
 
 

@@ -18,6 +18,9 @@
 // each micro-pixel weighted by f cos(theta) times its own solid angle; the cosine loop then
 // leaves them out inside the lobe's domain (lobe_inside), so the two loops split the directions -
 // except the specular lobe near glossy_below, which the two share (lobe_spec_share).
+// With IRRADIANCE the BRDF is a white Lambertian one, f = 1 / pi, whatever the material: the output
+// is E / pi, the diffuse outgoing radiance per unit albedo (the asset's surfel bounce and the
+// differential rendering of the scan, app/pbgi/renderer.py's gather_points).
 // Output per tile pixel: GatherOutput (L_out, status 1; -1 marks a gather loop the driver cut
 // short).
 #include "lib/common.glsl"
@@ -103,7 +106,11 @@ void main() {
         }
         sum += (fb + fs + fc) * L * weight;
 #else
+#ifdef IRRADIANCE
+        sum += L * (weight * INV_PI);
+#else
         sum += principled_brdf_prepared(Q, w) * L * weight;
+#endif
 #endif
     }
     bool complete = k == mm;

@@ -19,20 +19,23 @@ class Gather:
         self.ctx = ctx
         self._progs = {}
 
-    def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False):
-        key = (cubemap, frames, lobe)
+    def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False,
+              irradiance: bool = False):
+        key = (cubemap, frames, lobe, irradiance)
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
             if frames:
                 defines["FRAME_NORMALS"] = 1
             if lobe:
                 defines["LOBE_BUFFER"] = 1
+            if irradiance:
+                defines["IRRADIANCE"] = 1
             self._progs[key] = load_compute(self.ctx, "pbgi_gather.glsl", defines=defines or None)
         return self._progs[key]
 
     def run(self, receivers, materials, output, first: int, count: int, m: int,
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
-            lobe=None, lobe_buffers=None) -> None:
+            lobe=None, lobe_buffers=None, irradiance: bool = False) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
@@ -40,8 +43,11 @@ class Gather:
         frame its micro-buffer is in (FRAME; default its own normal - Hybrid's far-field sharing
         gives every receiver of a block the block's frame). ``lobe``: the LobeSettings of the
         glossy receivers' lobe micro-buffers (``lobe_buffers``, filled for this batch; with
-        ``env`` the lobe directions read the cube map instead; app/pbgi/lobe.py)."""
-        prog = self._prog(env is not None, frames is not None, lobe is not None)
+        ``env`` the lobe directions read the cube map instead; app/pbgi/lobe.py).
+        ``irradiance``: a white Lambertian BRDF for every receiver (E / pi; no lobes)."""
+        if irradiance and lobe is not None:
+            raise ValueError("an irradiance gather has no lobe micro-buffers")
+        prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance)
         if lobe is not None:
             if env is None:
                 lobe_buffers.bind()
@@ -66,6 +72,7 @@ class Gather:
         prog["u_count"] = count
         if "u_m" in prog:
             prog["u_m"] = m
-        prog["u_camera"] = tuple(float(c) for c in camera_rel)
+        if "u_camera" in prog:          # the IRRADIANCE variant does not look at the camera
+            prog["u_camera"] = tuple(float(c) for c in camera_rel)
         prog.run(dispatch_groups(count))
         self.ctx.memory_barrier()

@@ -106,6 +106,8 @@ class Relighter:
         self.last_receivers = None
         self._lobe = None                  # LobeBuffers, made on the first glossy render
         self._geo_key = None               # the cloud's geometry fingerprint
+        self._asset_scene = None           # AssetScene, made on the first render with the asset
+        self._splat_colors = None          # what the splats show: None = the scan's colours
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -141,6 +143,7 @@ class Relighter:
         if self._splat is not None:
             self._splat.release()
             self._splat = None
+        self._splat_colors = None
         if self._env is not None:
             self._env.release()
             self._env, self._env_key = None, None
@@ -173,9 +176,52 @@ class Relighter:
             self._splat = SplatRenderer(self.cloud, ctx=self.ctx)
         return self._splat
 
-    def background(self, camera) -> np.ndarray:
-        """The room's point splats from ``camera``, (h, w, 4), alpha 1 where a splat covers."""
-        return self.splat_renderer().render(camera)
+    def _splats_showing(self, differential=None):
+        """The splat renderer with the scan's colours, or with a Differential's applied."""
+        splat = self.splat_renderer()
+        want = None if differential is None else id(differential)
+        if self._splat_colors != want:
+            splat.set_colors(self.cloud.colors if differential is None
+                             else differential.colors(self.cloud.colors))
+            self._splat_colors = want
+        return splat
+
+    def background(self, camera, differential=None) -> np.ndarray:
+        """The room's point splats from ``camera``, (h, w, 4), alpha 1 where a splat covers;
+        with a ``differential`` (``Relighter.differential``) the asset's shadow and bounce on
+        the scan are in it."""
+        return self._splats_showing(differential).render(camera)
+
+    @property
+    def asset_scene(self):
+        from app.pbgi.asset_scene import AssetScene
+        if self._asset_scene is None:
+            self._asset_scene = AssetScene(self.ctx, self.gather)
+        return self._asset_scene
+
+    def scene_nodes(self, materials=None, params: RenderParams | None = None):
+        """The tree a render with ``params`` walks: the room and the asset's surfels
+        (app/pbgi/asset_scene.py, coloured with the bounce), or None when
+        ``params.asset_occlusion`` is off (the room's tree alone)."""
+        params = (params or RenderParams()).validated()
+        if not params.asset_occlusion:
+            return None
+        materials = list(self.mesh.materials if materials is None else materials)
+        return self.asset_scene.nodes(self.hierarchy, self._cloud_version, self.mesh,
+                                      self._asset_version, materials, params)
+
+    def differential(self, materials=None, params: RenderParams | None = None):
+        """The asset's shadow and bounce on the scan's points near it
+        (app/pbgi/asset_scene.py: Differential), for ``background(camera, differential)``."""
+        params = (params or RenderParams()).validated()
+        if self.hierarchy is None or self.mesh is None:
+            raise ScanlightError(None, "differential rendering needs a cloud and an asset")
+        if not params.asset_occlusion:
+            params = replace(params, asset_occlusion=True)
+        materials = list(self.mesh.materials if materials is None else materials)
+        return self.asset_scene.differential(
+            self.cloud, self._cloud_version, self.hierarchy, self.node_tex, self._cloud_version,
+            self.mesh, self._asset_version, materials, params)
 
     def environment(self, face: int):
         from app.pbgi.envmap import EnvironmentMap
@@ -183,7 +229,8 @@ class Relighter:
         if self._env_key != key:
             if self._env is not None:
                 self._env.release()
-            self._env = EnvironmentMap(self.ctx, self.splat_renderer(), self.object_centre(), face)
+            self._env = EnvironmentMap(self.ctx, self._splats_showing(None), self.object_centre(),
+                                       face)
             self._env_key = key
         return self._env
 
@@ -228,6 +275,16 @@ class Relighter:
         ctx = self.ctx
         from app.pbgi.gbuffer import material_table, pass_jitter
 
+        # the asset's surfels in the tree: built (and bounced) once per asset, cloud and
+        # materials, outside the frame's time (stats.ms_asset says what it took when it ran)
+        nodes, node_count, asset_first, scene_key = (self.node_tex, self.node_count,
+                                                     self.node_count, None)
+        scene = self.scene_nodes(materials, params) if params.mode != "envmap" else None
+        ms_asset = 0.0
+        if scene is not None:
+            nodes, node_count, asset_first, scene_key = (scene.textures, scene.count,
+                                                         scene.asset_first, scene.key)
+            ms_asset = self.asset_scene.seconds * 1e3
         ctx.finish()
         t0 = time.perf_counter()
         gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
@@ -237,10 +294,15 @@ class Relighter:
         n = len(rec)
         t1 = time.perf_counter()
         stats = RenderStats(mode=params.mode, microbuffer=m, width=w, height=h, tile=tile,
-                            receivers=n, nodes=self.node_count,
+                            receivers=n, nodes=node_count,
                             bsh_mb=(self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
                             micropixels=n * m * m, entries=n * entries(m),
                             ms_gbuffer=(t1 - t0) * 1e3)
+        if scene is not None:
+            stats.asset_surfels = int(params.asset_surfels)
+            stats.asset_bounces = int(params.asset_bounces)
+            stats.ms_asset = ms_asset
+            stats.mb_asset = self.asset_scene.nbytes / MB
         image = np.zeros((h, w, 4), dtype=np.float32)
         if n == 0:
             stats.ms, stats.mb = (t1 - t0) * 1e3, gb["bytes"] / MB
@@ -256,7 +318,7 @@ class Relighter:
                    params.omega_tr_factor, params.parallax_tolerance,
                    tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, pass_jitter(pass_index),
-                   tuple(id(mt.normal_texture) for mt in materials))
+                   tuple(id(mt.normal_texture) for mt in materials), scene_key)
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
             lobe = LobeSettings.for_microbuffer(m, params.glossy_below, pass_index)
@@ -267,10 +329,11 @@ class Relighter:
             frame = Frame(params=params, receivers=bufs["receivers"],
                           materials=bufs["materials"], output=bufs["output"], count=n,
                           tile=tile, camera_rel=camera.position - self.origin,
-                          nodes=self.node_tex, cell_size=self.hierarchy.cell_size,
+                          nodes=nodes, cell_size=self.hierarchy.cell_size,
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
-                          leaf_radius=self.leaf_radius if lobe is not None else 0.0)
+                          leaf_radius=self.leaf_radius if lobe is not None else 0.0,
+                          asset_first=asset_first)
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes
@@ -331,7 +394,9 @@ class Relighter:
         self.microbuffers.release()
         for mode in self.modes.values():
             mode.release()
-        for obj in (self.nodes_buf, self.node_tex, self._splat, self._env, self._lobe):
+        for obj in (self.nodes_buf, self.node_tex, self._splat, self._env, self._lobe,
+                    self._asset_scene):
             if obj is not None:
                 obj.release()
         self.nodes_buf = self.node_tex = self._splat = self._env = self._lobe = None
+        self._asset_scene = None

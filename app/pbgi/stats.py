@@ -113,6 +113,11 @@ class RenderStats:
     ms_lobe: float = 0.0              # the glossy receivers' lobe micro-buffers (app/pbgi/lobe.py)
     lobe_receivers: bool = False      # lobe micro-buffers were used (a glossy material)
     lobe_incomplete: int = 0          # receivers whose lobe walk did not complete
+    asset_surfels: int = 0            # the asset's surfels in the tree (0: the room's alone)
+    asset_bounces: int = 0            # diffuse bounces they carry
+    ms_asset: float = 0.0             # building the asset's surfel tree and bounce when this
+                                      # render did it (cached otherwise), outside ``ms``
+    mb_asset: float = 0.0             # the joined tree's records and node textures
     ms: float = 0.0                   # the whole render (every pass)
     passes: int = 1                   # passes averaged (Relighter.render_passes)
     mb: float = 0.0                   # GPU memory: the larger of the G-buffer and the rest

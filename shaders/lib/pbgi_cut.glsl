@@ -5,6 +5,7 @@
 //
 // Per node A at distance d, radius r, seen from receiver p with normal n:
 //   * below the horizon (dot(c - p, n) <= -r): discard the subtree;
+//   * a flat leaf (a disc) whose plane the receiver is on or behind: discard;
 //   * back-facing (Fig. 5, made conservative for the sphere's angular radius b = asin(r / d)):
 //     discard when every direction from p into the sphere meets only back faces of the normal
 //     cone, i.e. angle(-w, n_A) > alpha_A + b + pi/2  <=>  dot(w, n_A) > sin(alpha_A + b);
@@ -21,6 +22,7 @@
 #ifndef SCANLIGHT_PBGI_CUT_GLSL
 #define SCANLIGHT_PBGI_CUT_GLSL
 
+#define FLAT_LEAF_SIN 0.01             // sin of the cone half-angle below which a leaf is flat
 #define CUT_DESCEND 0u
 #define CUT_SKIP 1u
 #define CUT_ACCEPT 2u
@@ -54,12 +56,21 @@ uint cut_decide(uint node, vec3 p, vec3 N, vec3 T, vec3 B, float omega_stop,
     skip = link.skip;
     rect = uvec4(0u, 0u, uint(m - 1), uint(m - 1));
     if (h <= -s.radius) return CUT_SKIP;            // entirely below the horizon
+    BshCone cone = tnode_cone(node);
+    // A flat leaf (normal cone below FLAT_LEAF_SIN: one point, or coplanar ones) is a disc in
+    // the plane through its centre normal to its axis: a receiver on or behind that plane sees
+    // only its back (the per-ray test would reject every ray but those within the cone's angle
+    // of the plane, whose cosine weight is ~0). This keeps the neighbouring surfels of an asset's
+    // convex surface - near, hence large - out of its own receivers' walk and rasteriser.
+    float sin_a = sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0));
+    if (leaf && sin_a < FLAT_LEAF_SIN && dot(dv, cone.axis) >= -sqrt(d2) * sin_a)
+        return CUT_SKIP;
     if (d2 > r2) {
         float inv_d = inversesqrt(d2);
         float sin_b = s.radius * inv_d;
         float sin_b2 = sin_b * sin_b;
         float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
-        if (cut_back_facing(tnode_cone(node), dv * inv_d, sin_b, cos_b)) return CUT_SKIP;
+        if (cut_back_facing(cone, dv * inv_d, sin_b, cos_b)) return CUT_SKIP;
         float omega = TWO_PI * sin_b2 / (1.0 + cos_b);
         float limit = abs(h) < s.radius ? omega_horizon : omega_stop;
         if (leaf || omega <= limit) {

@@ -4,6 +4,8 @@ dispatches (llvmpipe's silent loop limit)."""
 from __future__ import annotations
 
 import numpy as np
+
+from app.pbgi import layout
 import pytest
 
 from tests.support import scenes as S
@@ -183,13 +185,15 @@ def test_sliced_walk_fills_the_same_microbuffers(room):
 def test_microbuffer_entries_are_visible_nodes(room):
     """Each filled micro-pixel holds a node whose bounding sphere its direction ray really hits
     (numpy ray-sphere test), in front of the receiver, not entirely below its horizon; a closed
-    room leaves (almost) no micro-pixel empty."""
+    room leaves (almost) no micro-pixel empty. The nodes are the joined tree's: the room's and
+    the asset's surfels (app/pbgi/scene_tree.py)."""
     m = 16
-    res = room.render(CAM, [S.diffuse()], RenderParams(mode="classic", microbuffer=m))
+    params = RenderParams(mode="classic", microbuffer=m)
+    res = room.render(CAM, [S.diffuse()], params)
     n = res.stats.receivers
     mb = room.microbuffers.read(n)
     rec = room.last_receivers                      # in micro-buffer row order
-    nodes = room.hierarchy.decoded()
+    nodes = layout.decode(room.scene_nodes([S.diffuse()], params).records)
     table = micro_pixel_table(m)
     filled_weight = 0.0
     for i in range(0, n, max(1, n // 25)):

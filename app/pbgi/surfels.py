@@ -1,0 +1,124 @@
+"""The asset as surfels, so the PBGI sees it: it occludes the room for itself and lights itself.
+
+Today's receivers are the asset's pixels and the micro-buffers hold only the room, so an asset is
+lit as if it were alone and convex. Here the asset's surface is sampled into surfels (discs of
+equal area: position, normal, base colour) and a small BSH is built over them
+(app/pbgi/hierarchy.py, no pruning: a surfel's colour changes with the bounce, the tree must not
+depend on it). app/pbgi/scene_tree.py joins that tree to the room's under one new root, so every
+mode's walk meets the asset's discs in the same micro-buffer, with the same depth test, as the
+room's points: the asset shadows the room for its own receivers.
+
+Sampling is stratified over the surface area (systematic sampling of the triangles' cumulative
+area: the i-th surfel sits at area (i + u_i) / n), so surfels are spread evenly without a
+Poisson pass and the result is deterministic for a seed. Each surfel stands for area A / n: its
+disc radius is sqrt(A / (n pi)), the radius of the leaves of its tree.
+
+Why receivers do not see their own surface: a surfel's disc faces along its normal, and the
+micro-buffer's ray test (lib/microbuffer.glsl) ignores a disc hit from behind. A receiver lies on
+or behind the tangent planes of the surfels around it on a convex part of the surface, so every
+ray towards them meets their back; on a concave part (a crease between two faces) the other face
+is in front and occludes, as it should. Leaves keep one surfel (the tree's cell is half the
+surfel spacing) so that the per-disc test holds.
+
+The bounce: a surfel carries outgoing radiance rho / pi x E, its irradiance gathered through the
+joined tree (so it is shadowed by the asset as well) with rho its base colour - the diffuse
+bounce. A metal's glossy inter-reflection is approximated by that diffuse one (its base colour is
+its reflectance at normal incidence): the reference protocol measures what that costs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.errors import ScanlightError
+
+
+@dataclass
+class Surfels:
+    positions: np.ndarray       # (n, 3) float64 world
+    normals: np.ndarray         # (n, 3) float32 unit, the mesh's interpolated shading normal
+    face: np.ndarray            # (n,) int64 triangle each surfel lies on
+    albedo: np.ndarray          # (n, 3) float32 base colour (factor x texture) in [0, 1]
+    area: float                 # surface area each surfel stands for (total / n)
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    @property
+    def radius(self) -> float:
+        """Radius of a disc of the surfel's area."""
+        return float(np.sqrt(self.area / np.pi))
+
+
+def _sample_texture(tex, uv: np.ndarray) -> np.ndarray:
+    """Nearest texel of a float (H, W, C) texture, glTF convention (v down), repeat wrap."""
+    t = np.asarray(tex, dtype=np.float32)
+    h, w = t.shape[:2]
+    x = np.floor(np.mod(uv[:, 0], 1.0) * w).astype(np.int64).clip(0, w - 1)
+    y = np.floor(np.mod(uv[:, 1], 1.0) * h).astype(np.int64).clip(0, h - 1)
+    return t[y, x]
+
+
+def sample_surfels(mesh, count: int, seed: int = 0) -> Surfels:
+    """``count`` surfels of equal area spread over ``mesh`` (see the module docstring)."""
+    count = int(count)
+    if count < 1:
+        raise ValueError("sample_surfels needs at least one surfel")
+    tri = mesh.indices.astype(np.int64)
+    p = mesh.positions[tri]                                   # (F, 3, 3) float64
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    areas = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+    total = float(areas.sum())
+    if not np.isfinite(total) or total <= 0.0:
+        raise ScanlightError(mesh.source, "the asset has no surface area to sample")
+    rng = np.random.default_rng(seed)
+    cum = np.cumsum(areas)
+    targets = (np.arange(count) + rng.random(count)) * (total / count)
+    face = np.searchsorted(cum, targets, side="right").clip(0, len(tri) - 1)
+    # barycentrics: uniform over the triangle
+    r1, r2 = rng.random(count), rng.random(count)
+    s = np.sqrt(r1)
+    b0, b1, b2 = 1.0 - s, s * (1.0 - r2), s * r2
+    bc = np.stack([b0, b1, b2], axis=1)
+    pos = np.einsum("nk,nkc->nc", bc, p[face])
+    nrm = np.einsum("nk,nkc->nc", bc, mesh.normals[tri[face]].astype(np.float64))
+    length = np.linalg.norm(nrm, axis=1, keepdims=True)
+    geo = np.cross(e1[face], e2[face])
+    geo /= np.maximum(np.linalg.norm(geo, axis=1, keepdims=True), 1e-30)
+    nrm = np.where(length > 1e-12, nrm / np.maximum(length, 1e-30), geo)
+    albedo = np.zeros((count, 3), np.float32)
+    mat = mesh.material_ids[face].astype(np.int64)
+    uv = None
+    if mesh.uvs is not None:
+        uv = np.einsum("nk,nkc->nc", bc, mesh.uvs[tri[face]].astype(np.float64))
+    for k, m in enumerate(mesh.materials):
+        sel = mat == k
+        if not sel.any():
+            continue
+        c = np.broadcast_to(np.asarray(m.base_color, np.float32)[:3], (int(sel.sum()), 3))
+        if m.base_color_texture is not None and uv is not None:
+            c = c * _sample_texture(m.base_color_texture, uv[sel])[:, :3]
+        albedo[sel] = np.clip(c, 0.0, 1.0)
+    return Surfels(pos, nrm.astype(np.float32), face, albedo, total / count)
+
+
+def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
+    """The bounce albedo of every surfel for ``materials`` (one per mesh material, or one for
+    all): the render's base colours, textured where the mesh's own material has a texture."""
+    materials = list(materials)
+    if len(materials) == 1 and len(mesh.materials) > 1:
+        materials = materials * len(mesh.materials)
+    mat = mesh.material_ids[surfels.face].astype(np.int64)
+    out = np.zeros((len(surfels), 3), np.float32)
+    for k, m in enumerate(materials[:len(mesh.materials)]):
+        sel = mat == k
+        if not sel.any():
+            continue
+        own = mesh.materials[k]
+        base = np.asarray(own.base_color, np.float32)[:3]
+        tex = np.where(base > 0, surfels.albedo[sel] / np.maximum(base, 1e-6), 1.0) \
+            if own.base_color_texture is not None else 1.0
+        out[sel] = np.clip(np.asarray(m.base_color, np.float32)[:3] * tex, 0.0, 1.0)
+    return out

@@ -48,8 +48,6 @@ uniform float u_inv_cell_area;  // 1 / cell_size^2 (tie-break scale)
 uniform uint u_node_count;      // BSH_END
 uniform vec3 u_camera;          // camera position relative to the hierarchy origin
 uniform float u_leaf_radius;    // a leaf is a disc of at least this radius (the scan's surface)
-uniform uint u_asset_first;     // nodes from here on are the asset's surfels (app/pbgi/
-                                // scene_tree.py): already discs of their own size, not grown
 
 void lobe_write(uint receiver, uint k, uint key, uint node) {
     ivec2 c = ivec2(int(k), int(receiver));
@@ -85,7 +83,7 @@ void main() {
         // an inner node bound its points' discs the same way; with the sphere alone a narrow
         // lobe loses the disc edges that stick out of it: holes in a mirror. The cut's
         // acceptance compares an inner node's own sphere.
-        float grow = node >= u_asset_first ? 0.0 : u_leaf_radius;
+        float grow = cut_is_asset(node) ? 0.0 : u_leaf_radius;   // surfels: discs already
         s.radius += grow;
         float own_r = leaf ? s.radius : s.radius - grow;
         vec3 dv = s.center - p;
@@ -145,7 +143,7 @@ void main() {
         if (load) {
             nd = cut_node(cut_list_node[k], p, u_inv_cell_area);
             if ((tnode_link(nd.index).count_flags & BSH_TEX_LEAF_BIT) != 0u
-                    && nd.index < u_asset_first) {
+                    && !cut_is_asset(nd.index)) {
                 float r = sqrt(nd.r2) + u_leaf_radius;
                 nd.r2 = r * r;
             }

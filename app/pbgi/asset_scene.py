@@ -112,7 +112,7 @@ class AssetScene:
         key = (geo_version, asset_version, int(count))
         if self._tree is None or self._tree[0] != key:
             s = self.surfels(mesh, asset_version, count)
-            self._tree = (key, join(room, asset_hierarchy(s)))
+            self._tree = (key, join(room, asset_hierarchy(s), s.area))
         return self._tree
 
     def radiance(self, tree_key, tree: SceneTree, room, mesh, materials, surfels: Surfels,
@@ -139,7 +139,9 @@ class AssetScene:
                 self._upload[2].release()
             coloured = recolor_asset(tree, radiance) if radiance.any() else tree
             buf = self.ctx.buffer(np.ascontiguousarray(coloured.nodes).tobytes())
-            self._upload = (key, buf, NodeTextures(self.ctx, buf, len(coloured)), coloured)
+            tex = NodeTextures(self.ctx, buf, len(coloured))
+            tex.asset_first, tex.surfel_area = tree.asset_first, tree.surfel_area
+            self._upload = (key, buf, tex, coloured)
         return self._upload[1], self._upload[2], self._upload[3]
 
     # -- what the Relighter asks -----------------------------------------------------------

@@ -85,6 +85,7 @@ class ClassicCut(CutFinder):
         if "u_inv_cell_area" in prog:
             prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
+        nodes.set_uniforms(prog)
         groups = dispatch_groups(count)
         rounds, remaining = 0, count
         while remaining and rounds < self.max_rounds:

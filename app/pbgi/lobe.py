@@ -158,12 +158,11 @@ class LobeBuffers:
         self.image.bind_to_image(IMAGE.LOBE, read=True, write=True)
 
     def fill(self, settings: LobeSettings, receivers, materials, first: int, count: int,
-             capacity: int, nodes, cell_size: float, camera_rel, leaf_radius: float,
-             asset_first: int | None = None) -> dict:
+             capacity: int, nodes, cell_size: float, camera_rel, leaf_radius: float) -> dict:
         """Walk and ray cast the lobe micro-buffers of receivers [first, first + count);
         each point is a disc of ``leaf_radius`` (surface_radius of the cloud), so a leaf is a disc
-        of its sphere's radius + leaf_radius - except the asset's surfels, nodes from
-        ``asset_first`` on (app/pbgi/scene_tree.py; default: none), discs of their own size."""
+        of its sphere's radius + leaf_radius - except the asset's surfels (nodes from
+        ``nodes.asset_first`` on, app/pbgi/scene_tree.py), discs of their own size."""
         if self.splat_budget < settings.cells:
             raise ValueError("splat budget must cover one whole lobe micro-buffer")
         self._prepare(settings.cells, capacity, count)
@@ -180,11 +179,11 @@ class LobeBuffers:
                   "u_steps": self.steps, "u_splat_budget": self.splat_budget,
                   "u_inv_cell_area": 1.0 / max(cell_size, 1e-9) ** 2,
                   "u_node_count": nodes.count, "u_leaf_radius": float(leaf_radius),
-                  "u_asset_first": nodes.count if asset_first is None else int(asset_first),
                   "u_camera": tuple(float(c) for c in camera_rel)}
         for name, value in values.items():
             if name in prog:
                 prog[name] = value
+        nodes.set_uniforms(prog)
         rounds, remaining = 0, count
         while remaining and rounds < self.max_rounds:
             self.counter.write(b"\0\0\0\0")

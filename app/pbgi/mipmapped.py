@@ -244,6 +244,7 @@ class PairRefiner(CutFinder):
         _set(self.finish, u_first=first, u_count=count, u_m=m, u_omega_stop=omega_stop,
              u_omega_horizon=omega_horizon, u_steps=self.steps, u_splat_budget=self.splat_budget,
              u_inv_cell_area=inv_cell)
+        nodes.set_uniforms(self.finish)
         self.finish_init["u_count"] = int(topo.offsets[1])
 
         ctx.finish()

@@ -89,8 +89,6 @@ class Frame:
     lobe: Any = None                  # LobeSettings when a receiver may be glossy (app/pbgi/lobe.py)
     lobe_buffers: Any = None          # the Relighter's LobeBuffers (filled per batch)
     leaf_radius: float = 0.0          # the scan's surface disc radius (lobe.surface_radius)
-    asset_first: int = 0              # first node of the asset's surfel tree (scene_tree.py);
-                                      # the node count when the tree holds the room only
     irradiance: bool = False          # gather E / pi (white Lambertian), not the material
 
     @property
@@ -265,8 +263,7 @@ class MicroBufferMode(RenderMode):
             if frame.lobe is not None:
                 lobe_figures = frame.lobe_buffers.fill(
                     frame.lobe, frame.receivers, frame.materials, first, count, per, frame.nodes,
-                    frame.cell_size, frame.camera_rel, frame.leaf_radius,
-                    frame.asset_first or None)
+                    frame.cell_size, frame.camera_rel, frame.leaf_radius)
                 ctx.finish()
                 stats.ms_lobe += (time.perf_counter() - tl) * 1e3
                 stats.lobe_incomplete += lobe_figures["incomplete"]

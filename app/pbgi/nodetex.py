@@ -43,6 +43,18 @@ class NodeTextures:
         ctx.memory_barrier()
         prog.release()
         self.nbytes = sum(rec.nbytes * WIDTH * h for rec, _, _ in TEXTURES.values())
+        # the asset's surfels in a joined tree (app/pbgi/scene_tree.py): nodes from
+        # ``asset_first`` on, each surfel of area ``surfel_area``; none by default
+        self.asset_first = self.count
+        self.surfel_area = 0.0
+
+    def set_uniforms(self, prog) -> None:
+        """The tree's uniforms of lib/pbgi_cut.glsl a walk shader kept: where the asset's
+        nodes start and their surfels' area (0: no asset in the tree)."""
+        for name, value in (("u_asset_first", int(self.asset_first)),
+                            ("u_surfel_area", float(self.surfel_area))):
+            if name in prog:
+                prog[name] = value
 
     def use(self) -> None:
         for name, (_, unit, _) in TEXTURES.items():

@@ -23,7 +23,7 @@ from app.pbgi.microbuffer import MicroBuffers, entries
 from app.pbgi.modebase import Frame, HeldCut, RenderParams
 from app.pbgi.stats import RenderStats
 
-MICROBUFFER = 12          # M of the point gathers (diffuse, low-frequency light)
+MICROBUFFER = 16          # M of the point gathers (diffuse, low-frequency light)
 
 
 class PointGather:

@@ -332,8 +332,7 @@ class Relighter:
                           nodes=nodes, cell_size=self.hierarchy.cell_size,
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
-                          leaf_radius=self.leaf_radius if lobe is not None else 0.0,
-                          asset_first=asset_first)
+                          leaf_radius=self.leaf_radius if lobe is not None else 0.0)
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes

@@ -30,6 +30,7 @@ class SceneTree:
     nodes: np.ndarray            # joined records (layout.NODE_DTYPE), root at 0
     asset_first: int             # index of the asset tree's root
     asset: Hierarchy             # the asset's own tree (its origin, point_node for recolouring)
+    surfel_area: float = 0.0     # the area each surfel stands for
 
     def __len__(self) -> int:
         return len(self.nodes)
@@ -45,7 +46,7 @@ def asset_hierarchy(surfels) -> Hierarchy:
                      cell_size=0.5 * spacing, min_leaf_radius=surfels.radius, prune=False)
 
 
-def join(room: Hierarchy, asset: Hierarchy) -> SceneTree:
+def join(room: Hierarchy, asset: Hierarchy, surfel_area: float = 0.0) -> SceneTree:
     """The joined tree (see the module docstring)."""
     r, a = len(room.nodes), len(asset.nodes)
     nodes = np.empty(1 + r + a, dtype=layout.NODE_DTYPE)
@@ -59,7 +60,7 @@ def join(room: Hierarchy, asset: Hierarchy) -> SceneTree:
     an["skip"] = an["skip"] + np.uint32(1 + r)
     nodes[1 + r:] = an
     _set_root(nodes, 1, 1 + r)
-    return SceneTree(nodes, 1 + r, asset)
+    return SceneTree(nodes, 1 + r, asset, float(surfel_area))
 
 
 def _set_root(nodes: np.ndarray, left: int, right: int) -> None:
@@ -84,4 +85,4 @@ def recolor_asset(tree: SceneTree, colors: np.ndarray) -> SceneTree:
     nodes = tree.nodes.copy()
     nodes["color"][tree.asset_first:] = recolor(tree.asset, colors)["color"]
     _set_root(nodes, 1, tree.asset_first)
-    return SceneTree(nodes, tree.asset_first, tree.asset)
+    return SceneTree(nodes, tree.asset_first, tree.asset, tree.surfel_area)

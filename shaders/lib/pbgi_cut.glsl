@@ -31,6 +31,15 @@
 #define CUT_LIST_CAP 64
 #endif
 
+// The asset's surfels in a joined tree (app/pbgi/scene_tree.py, NodeTextures.set_uniforms):
+// nodes from u_asset_first on, each surfel standing for u_surfel_area (0: no asset).
+uniform uint u_asset_first;
+uniform float u_surfel_area;
+bool cut_is_asset(uint node) { return u_surfel_area > 0.0 && node >= u_asset_first; }
+#ifndef CUT_TILE_COVER
+#define CUT_TILE_COVER 1.5708         // pi / 2: see cut_node
+#endif
+
 // Paper Fig. 5: does every point of a node seen in direction l (unit) within angle b (sin_b,
 // cos_b) face away from the receiver? Its normals lie within the cone's half-angle alpha of the
 // axis, so all of them do when the angle between -l and the axis exceeds alpha + b.
@@ -114,16 +123,36 @@ void cut_write(uint receiver, uint k, uint key, uint node) {
 }
 
 // What the per-micro-pixel test needs about list entry k.
+//
+// An accepted inner node of the asset is ray tested against a sphere of its surface's
+// *projected area*, not its bounding sphere: the room surrounds a receiver, so a bounding sphere
+// too big only moves the depth test's boundary between room clusters, but the asset stands in
+// front of the room and a cluster's bounding sphere (twice or more its surface's silhouette for
+// a face of a box or a cap of a sphere) would hide room light its surface does not. A cap of
+// half-angle alpha (the normal cone) of area A shows pi r^2 = A (1 + cos alpha) / 2 along its
+// axis (a flat patch: A; a hemisphere: A / 2), at least A / 4 (a closed surface), times
+// CUT_TILE_COVER = pi / 2: neighbouring clusters are squares more than discs, and discs of their
+// exact area leave the corners open (9% of a flat face: light leaks through the asset), discs of
+// pi / 2 their area are the squares' circumcircles and close them. Measured against the closed
+// form of a sphere occluding the furnace (tests/pbgi/test_asset_scene.py) at M = 24: the hidden
+// part within 2% at 1.5 and 2.25 radii (bounding spheres: up to 2x; exact area: -11%), +20% at
+// 3.25 radii where the sphere covers a dozen micro-pixels. r never grows beyond the bounding
+// radius, so surfel leaves stay their own discs.
 MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
     BshSphere s = tnode_sphere(a);
     BshCone cone = tnode_cone(a);
+    uint points = max(tnode_link(a).count_flags & BSH_TEX_COUNT_MASK, 1u);
     MbNode nd;
     nd.dv = s.center - p;
     nd.d2 = dot(nd.dv, nd.dv);
     nd.r2 = s.radius * s.radius;
+    if (cut_is_asset(a)) {
+        float shown = max(0.5 * (1.0 + cone.cos_angle), 0.25);
+        nd.r2 = min(nd.r2, float(points) * u_surfel_area * shown * (CUT_TILE_COVER * INV_PI));
+    }
     nd.axis = cone.axis;
     nd.sin_a = cone.cos_angle > 0.0 ? sqrt(max(1.0 - cone.cos_angle * cone.cos_angle, 0.0)) : 1.0;
-    nd.inv_area = inv_cell_area / float(max(tnode_link(a).count_flags & BSH_TEX_COUNT_MASK, 1u));
+    nd.inv_area = inv_cell_area / float(points);
     nd.index = a;
     return nd;
 }

@@ -5,10 +5,12 @@ itself) and the asset's shadow and bounce on the scan (differential rendering).
 
 * surfels (app/pbgi/surfels.py) and the joined tree (app/pbgi/scene_tree.py): rebuilt when the
   asset (its mesh or placement), the cloud's geometry or the surfel count change;
-* the bounce: per surfel radiance rho / pi x E, E gathered through the joined tree
+* the bounce: per surfel radiance rho / pi x E, E gathered through the joined tree at up to
+  ``BOUNCE_SAMPLES`` surfels and interpolated to the others like the differential below
   (app/pbgi/point_gather.py) with the previous bounce's radiance on the asset (0 for the first:
-  one bounce = direct light from the room, shadowed by the asset itself); redone when the
-  materials' base colours change, never when only the camera moves;
+  one bounce = direct light from the room, shadowed by the asset itself); never redone when
+  only the camera moves. The first gather does not depend on the materials (it sees a black
+  asset) and is kept: with one bounce a material edit only rescales it by the new albedo;
 * the node textures the modes walk (colours of the latest bounce);
 * the differential: the scan's points within ``REACH`` asset radii of the asset's bounding
   sphere are gathered without the asset (the room's tree) and with it (the joined tree, bounce
@@ -42,7 +44,8 @@ from app.pbgi.surfels import Surfels, sample_surfels, surfel_albedo
 
 REACH = 1.5          # the differential's region: points within (1 + REACH) x the asset radius
 FADE = 0.5           # ... the change fading to 0 over its last FADE x the asset radius
-SAMPLES = 4096       # the differential gathers at most this many of them and interpolates
+SAMPLES = 2048       # the differential gathers at most this many of them and interpolates
+BOUNCE_SAMPLES = 2048  # the bounce gathers at most this many surfels and interpolates
 NEIGHBOURS = 8       # the interpolation's samples per point
 
 
@@ -73,16 +76,25 @@ class Differential:
         return out
 
 
-def _interpolate(cloud, sample: np.ndarray, index: np.ndarray, fields) -> list[np.ndarray]:
-    """``fields`` known at points ``sample``, at points ``index`` (see the module docstring)."""
+def _evenly(index: np.ndarray, most: int) -> np.ndarray:
+    """At most ``most`` of ``index``, drawn without replacement (seeded), in order."""
+    if len(index) <= most:
+        return index
+    return np.sort(np.random.default_rng(0).choice(index, most, replace=False))
+
+
+def _interpolate(positions, normals, sample: np.ndarray, index: np.ndarray,
+                 fields) -> list[np.ndarray]:
+    """``fields`` known at points ``sample`` (indices into ``positions``/``normals``), at
+    points ``index`` (see the module docstring)."""
     if len(sample) == len(index):
         return list(fields)
     from scipy.spatial import cKDTree
     k = min(NEIGHBOURS, len(sample))
-    dist, near = cKDTree(cloud.positions[sample]).query(cloud.positions[index], k=k)
+    dist, near = cKDTree(positions[sample]).query(positions[index], k=k)
     dist, near = dist.reshape(len(index), k), near.reshape(len(index), k)
-    agree = np.einsum("nkc,nc->nk", cloud.normals[sample][near].astype(np.float64),
-                      cloud.normals[index].astype(np.float64))
+    agree = np.einsum("nkc,nc->nk", normals[sample][near].astype(np.float64),
+                      normals[index].astype(np.float64))
     w = np.maximum(agree, 0.0) ** 4 / np.maximum(dist, 1e-6)
     none = w.sum(axis=1) <= 0.0
     w[none, 0] = 1.0                                     # nothing faces the same way: nearest
@@ -97,6 +109,7 @@ class AssetScene:
         self._surfels = None      # (key, Surfels)
         self._tree = None         # (key, SceneTree) uncoloured
         self._bounce = None       # (key, per-surfel radiance)
+        self._direct = None       # (tree key, per-surfel E / pi of the room alone, shadowed)
         self._upload = None       # (key, buffer, NodeTextures, SceneTree)
         self._diff = None         # (key, Differential)
         self.seconds = 0.0        # building work done by the latest call (0: all cached)
@@ -123,11 +136,20 @@ class AssetScene:
         if self._bounce is not None and self._bounce[0] == key:
             return self._bounce[1]
         rad = np.zeros((len(surfels), 3), np.float32)
-        rel = surfels.positions - room.origin
+        every = np.arange(len(surfels))
+        sample = _evenly(every, BOUNCE_SAMPLES)
+        rel = surfels.positions[sample] - room.origin
         offset = 0.25 * surfels.radius
-        for _ in range(int(bounces)):
-            _, tex, _ = self._textures((tree_key, rad.tobytes()), tree, rad)
-            e = self.points.run(rel, surfels.normals, tex, room.cell_size, offset=offset)
+        for b in range(int(bounces)):
+            if b == 0 and self._direct is not None and self._direct[0] == tree_key:
+                e = self._direct[1]          # the first gather sees a black asset: no albedo
+            else:
+                _, tex, _ = self._textures((tree_key, rad.tobytes()), tree, rad)
+                e = self.points.run(rel, surfels.normals[sample], tex, room.cell_size,
+                                    offset=offset)
+                e = _interpolate(surfels.positions, surfels.normals, sample, every, [e])[0]
+                if b == 0:
+                    self._direct = (tree_key, e)
             rad = (albedo * e).astype(np.float32)
         self._bounce = (key, rad)
         return rad
@@ -173,15 +195,14 @@ class AssetScene:
         d = np.linalg.norm(cloud.positions - centre, axis=1)
         index = np.flatnonzero(d <= (1.0 + REACH) * radius)
         fade = np.clip(((1.0 + REACH) * radius - d[index]) / (FADE * radius), 0.0, 1.0)
-        rng = np.random.default_rng(0)
-        sample = index if len(index) <= SAMPLES else np.sort(
-            rng.choice(index, SAMPLES, replace=False))
+        sample = _evenly(index, SAMPLES)
         rel = cloud.positions[sample] - room.origin
         nrm = cloud.normals[sample]
         offset = room.cell_size
         e0 = self.points.run(rel, nrm, room_textures, room.cell_size, offset=offset)
         e1 = self.points.run(rel, nrm, scene.textures, room.cell_size, offset=offset)
-        without, with_asset = _interpolate(cloud, sample, index, (e0, e1))
+        without, with_asset = _interpolate(cloud.positions, cloud.normals, sample, index,
+                                           (e0, e1))
         col = np.asarray(cloud.colors[index], np.float32)
         albedo = np.clip(np.where(without > 1e-8, col / np.maximum(without, 1e-8), 1.0), 0.0, 1.0)
         delta = (albedo * (with_asset - without) * fade[:, None]).astype(np.float32)

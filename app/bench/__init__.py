@@ -7,4 +7,5 @@ BENCHES = {
     "table3": "app.bench.table3",
     "expand": "app.bench.expand",
     "glossy": "app.bench.glossy",
+    "asset": "app.bench.asset_light",
 }

@@ -41,6 +41,7 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
                             "pbgi.parallax_tolerance")),
     "bench classic": _flags(("pbgi.memory_budget_mb",)),
     "bench glossy": _flags(("pbgi.microbuffer",)),
+    "bench asset": _flags(("pbgi.microbuffer", "pbgi.asset_surfels")),
     "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed"),
                            {"hdr.poisson_solver": "--solver"}),
 }

@@ -28,6 +28,7 @@ MINIMAL = {
     "bench classic": ["bench", "classic"],
     "bench expand": ["bench", "expand"],
     "bench glossy": ["bench", "glossy"],
+    "bench asset": ["bench", "asset"],
 }
 
 

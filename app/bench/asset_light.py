@@ -1,0 +1,128 @@
+"""``scanlight bench asset``: what the asset-in-the-room features cost - self-occlusion, its
+bounces, the differential rendering of the scan - and, where the committed path-traced
+references exist (tests/pbgi/references/occlusion/, app/bench/occlusion.py), what they buy.
+
+Cost rows: the demo room's ground-truth cloud, an asset (the demo's knot, non-convex, and its
+sphere), the closeup camera; per mode and variant the frame time (the fastest of ``--repeat``
+renders after a warm-up, each finding its cut again), its ratio to the same mode without the
+asset in the tree (measured in the same run, interleaved, so machine noise hits both), the
+one-off build (surfels, tree, bounce gathers: once per asset, cloud and materials; a material
+edit with one bounce only rescales) and GPU memory. One row per asset for the differential
+(points changed, seconds).
+
+Accuracy rows: for every reference (room, asset, material), per mode, the 4x4-pooled relative
+RMSE and HDR-FLIP of the render with the asset in the tree and without.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+from app.bench.records import record
+from app.commands.options import add_param_options, param_values
+from app.errors import UsageError
+
+log = logging.getLogger(__name__)
+
+VARIANTS = {                     # name -> RenderParams overrides
+    "off": {"asset_occlusion": False},
+    "occlusion": {"asset_occlusion": True, "asset_bounces": 0},
+    "occlusion+1 bounce": {"asset_occlusion": True, "asset_bounces": 1},
+    "occlusion+2 bounces": {"asset_occlusion": True, "asset_bounces": 2},
+}
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--assets", default="knot,sphere", help="built-in assets (knot,sphere)")
+    parser.add_argument("--modes", default="classic,hybrid", help="render modes")
+    parser.add_argument("--size", type=int, default=128, help="image side in pixels")
+    parser.add_argument("--repeat", type=int, default=3, help="renders per case, fastest kept")
+    parser.add_argument("--points", type=int, default=200_000, help="demo room points")
+    parser.add_argument("--no-accuracy", action="store_true",
+                        help="skip the rows against the committed references")
+    add_param_options(parser, "bench asset")      # --microbuffer, --asset-surfels
+
+
+def _cost_rows(args, values) -> list[dict]:
+    from app.demo.room import default_object, default_views, sample_room
+    from app.io.formats import object_from_dict, placed_mesh
+    from app.material import Material
+    from app.params import RENDER_MODES
+    from app.pbgi.renderer import Relighter, RenderParams
+
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    if not modes or any(m not in RENDER_MODES or m == "envmap" for m in modes):
+        raise UsageError(None, f"--modes must be PBGI modes, got {args.modes!r}")
+    assets = [a.strip() for a in args.assets.split(",") if a.strip()]
+    if not assets or any(a not in ("knot", "sphere") for a in assets):
+        raise UsageError(None, f"--assets must be among knot, sphere; got {args.assets!r}")
+    cloud = sample_room(int(args.points), 0)
+    cam = default_views(args.size, args.size)["closeup"]
+    mat = [Material(base_color=(0.7, 0.7, 0.7), metallic=0.0, roughness=0.6)]
+    m = values["pbgi.microbuffer"]
+    surfels = values["pbgi.asset_surfels"]
+    rows = []
+    rl = Relighter()
+    rl.set_cloud(cloud)
+    for asset in assets:
+        rl.set_asset(placed_mesh(object_from_dict(default_object(asset), ".")))
+        for mode in modes:
+            params = {v: RenderParams(mode=mode, microbuffer=m, asset_surfels=surfels, **kw)
+                      for v, kw in VARIANTS.items()}
+            build = {}
+            for v, p in params.items():             # warm up, and time the one-off build
+                res = rl.render(cam, mat, p)
+                build[v] = res.stats.ms_asset
+            best = {v: None for v in params}
+            for _ in range(max(int(args.repeat), 1)):
+                for v, p in params.items():         # interleaved: noise hits every variant
+                    rl.forget_microbuffers()
+                    res = rl.render(cam, mat, p)
+                    if best[v] is None or res.stats.ms < best[v].stats.ms:
+                        best[v] = res
+            base = best["off"].stats
+            for v, res in best.items():
+                st = res.stats
+                rows.append(record("asset cost", {"asset": asset, "mode": mode, "variant": v,
+                                                  "M": m, "surfels": surfels if v != "off"
+                                                  else 0},
+                                   {"ms": st.ms, "ms_vs_off": st.ms / base.ms,
+                                    "nodes_visited": st.nodes_visited or 0.0,
+                                    "build_ms": build[v], "mb": st.mb + st.mb_asset,
+                                    "mb_asset": st.mb_asset,
+                                    "completed": float(st.completed)}))
+                log.info("%s %s %s: %.0f ms (x%.2f), build %.0f ms", asset, mode, v, st.ms,
+                         st.ms / base.ms, build[v])
+        t0 = time.perf_counter()
+        diff = rl.differential(mat, RenderParams(asset_surfels=surfels))
+        rows.append(record("asset differential", {"asset": asset, "surfels": surfels},
+                           {"seconds": time.perf_counter() - t0, "points": len(diff.index),
+                            "darker_points": int((diff.delta.sum(axis=1) < 0).sum()),
+                            "mean_delta": float(diff.delta.mean())}))
+    rl.release()
+    return rows
+
+
+def _accuracy_rows(args, values) -> list[dict]:
+    try:
+        from app.bench import occlusion
+    except ImportError:
+        return []
+    return occlusion.accuracy_records(microbuffer=values["pbgi.microbuffer"],
+                                      surfels=values["pbgi.asset_surfels"],
+                                      modes=[m.strip() for m in args.modes.split(",")
+                                             if m.strip()])
+
+
+def run(args) -> list[dict]:
+    values = param_values(args, "bench asset")
+    if args.size < 8 or args.size > 1024:
+        raise UsageError(None, f"--size must be in 8 .. 1024, got {args.size}")
+    rows = _cost_rows(args, values)
+    if not args.no_accuracy:
+        rows += _accuracy_rows(args, values)
+    return rows
+
+
+__all__ = ["add_arguments", "run", "VARIANTS"]

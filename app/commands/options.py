@@ -34,7 +34,7 @@ RENAMED = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th", "hdr.neighb
 
 # command -> {flag: key}
 COMMAND_FLAGS: dict[str, dict[str, str]] = {
-    "render": _flags(RENDER_KEYS + ("pbgi.passes", "view.exposure")),
+    "render": _flags(RENDER_KEYS + ("pbgi.passes", "pbgi.differential", "view.exposure")),
     "expand": _flags(EXPAND_KEYS),
     "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha")),
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",

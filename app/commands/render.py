@@ -12,8 +12,13 @@ The rendering options and their defaults are the parameter table's (app/params.p
 the viewer's; app/commands/options.py maps the flags).
 
 PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
-``--background`` composites the object over the room's point splats seen from the same camera;
-without it the background is black (alpha is in the PNG). ``--passes N`` averages N renders
+``--background`` composites the object over the room's point splats seen from the same camera,
+with the asset's shadow and bounce on the scan (``--differential``, on by default:
+app/pbgi/asset_scene.py); without it the background is black (alpha is in the PNG).
+The ``--out`` EXR carries that alpha too (channels R, G, B, A; A = coverage, RGB premultiplied;
+with ``--background``, the max of the object's and the splats' coverage).
+``--layers L.exr`` also writes one multi-layer EXR for a compositor (``render_layers``): beauty,
+asset, background, shadow, indirect, channels ``<layer>.R/G/B/A``, premultiplied linear. ``--passes N`` averages N renders
 whose pixels sample N points inside each pixel (app/pbgi/gbuffer.py: pass_jitter), so edges and
 mirror images are anti-aliased and the glossy lobes' jitter averages out; the radiance is then
 premultiplied by the covered fraction (alpha). ``--material`` overrides every
@@ -23,6 +28,7 @@ material of the asset; without it the asset's own (glTF/MTL) materials are used.
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -48,6 +54,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--size", metavar="WxH", help="override the camera's image size")
     parser.add_argument("--background", action="store_true",
                         help="composite over the room's point splats")
+    parser.add_argument("--layers", metavar="LAYERS.exr",
+                        help="also a multi-layer EXR for compositing: beauty, asset, background, "
+                             "shadow (the asset's shadow/bounce on the scan), indirect (the "
+                             "asset's light from itself); channels <layer>.R/G/B/A")
     add_param_options(parser, "render")
 
 
@@ -57,6 +67,8 @@ def _check_args(args) -> dict:
         raise UsageError(None, f"--out must name an .exr file, got {args.out!r}")
     if args.png and Path(args.png).suffix.lower() != ".png":
         raise UsageError(None, f"--png must name a .png file, got {args.png!r}")
+    if args.layers and Path(args.layers).suffix.lower() != ".exr":
+        raise UsageError(None, f"--layers must name an .exr file, got {args.layers!r}")
     if args.size:
         w, h = parse_size(args.size)
         if w * h > MAX_PIXELS:
@@ -78,7 +90,8 @@ def run(args) -> int:
     values = _check_args(args)
     check_outputs({"--cloud": args.cloud, "--object": args.object, "--material": args.material,
                    "--camera": args.camera},
-                  {"--out": args.out, "--png": args.png, "--stats": args.stats})
+                  {"--out": args.out, "--png": args.png, "--stats": args.stats,
+                   "--layers": args.layers})
     exposure = values["view.exposure"]
     camera = load_camera(args.camera)
     if args.size:
@@ -105,32 +118,78 @@ def run(args) -> int:
                      "gather_cut_short": st.gather_cut_short,
                      "nonfinite_pixels": st.nonfinite_pixels})
     rgba = img.copy()
+    diff = None
+    if (args.background or args.layers) and values["pbgi.differential"] and \
+            params.mode != "envmap":
+        t = time.perf_counter()
+        diff = r.differential(materials, params)
+        log.info("the asset's shadow and bounce on %d scan points: %.1f s", len(diff.index),
+                 time.perf_counter() - t)
     if args.background:
-        bg = r.background(camera)
-        a = img[..., 3:4]
-        rgba[..., :3] = img[..., :3] + bg[..., :3] * (1.0 - a)    # premultiplied (passes)
-        rgba[..., 3] = np.maximum(img[..., 3], bg[..., 3])
+        rgba = over(img, r.background(camera, diff))
+    layers = None
+    if args.layers:
+        layers = render_layers(r, camera, materials, params, passes, img, diff)
+
+    stats_diff = None if diff is None else {"points": int(len(diff.index)),
+                                            "seconds": round(diff.seconds, 3)}
 
     stats = st.to_dict()                  # app.pbgi.stats.RenderStats, plus the run's inputs
     stats.update({"cloud": str(args.cloud), "points": len(cloud), "object": str(args.object),
                   "triangles": int(mesh.n_faces), "camera": camera.to_dict(),
                   "renderer": r.ctx.info.get("GL_RENDERER"),
                   "tonemapper": "Khronos PBR Neutral", "exposure": exposure,
+                  "differential": stats_diff,
                   "bsh": {k: v for k, v in r.hierarchy.stats.items()
                           if isinstance(v, (int, float, str))}})
     # every output to a temporary, then all renamed together (app/io/outputs.py)
-    with OutputSet({"--out": args.out, "--png": args.png, "--stats": args.stats}) as outs:
-        write_exr(outs.temp("--out"), rgba[..., :3])
+    with OutputSet({"--out": args.out, "--png": args.png, "--stats": args.stats,
+                    "--layers": args.layers}) as outs:
+        write_exr(outs.temp("--out"), rgba)
         if args.png:
             from app.io.images import write_png
             from app.render.tonemap import tonemap_to_srgb8
             write_png(outs.temp("--png"), tonemap_to_srgb8(rgba, exposure))
         if args.stats:
             write_json(outs.temp("--stats"), stats)
+        if layers is not None:
+            from app.io.exr import write_exr_layers
+            write_exr_layers(outs.temp("--layers"), layers)
     print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}"
           + (f", {passes} passes" if passes > 1 else "") + ") in "
           f"{st.ms:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0
 
 
-__all__ = ["add_arguments", "run"]
+def over(front: np.ndarray, back: np.ndarray) -> np.ndarray:
+    """``front`` (premultiplied RGBA: passes average coverage) over ``back``."""
+    out = front.copy()
+    a = front[..., 3:4]
+    out[..., :3] = front[..., :3] + back[..., :3] * (1.0 - a)
+    out[..., 3] = np.maximum(front[..., 3], back[..., 3])
+    return out
+
+
+def render_layers(r, camera, materials, params, passes: int, asset: np.ndarray,
+                  diff) -> dict:
+    """The compositing layers (premultiplied RGBA, linear; see the module docstring):
+    beauty = asset over the background with the asset's shadow; asset = the relit asset alone
+    (alpha = coverage); background = the scan's splats as scanned; shadow = what the asset
+    does to them (signed: negative in its shadow, positive where its bounce lands; alpha = the
+    splats' coverage); indirect = the part of the asset's light that came from itself (its
+    surfels' bounce; a second render of the same cut without the bounce, zero when the bounce
+    is off)."""
+    plate = r.background(camera)
+    lit = r.background(camera, diff) if diff is not None else plate
+    shadow = lit.copy()
+    shadow[..., :3] = lit[..., :3] - plate[..., :3]
+    indirect = np.zeros_like(asset)
+    indirect[..., 3] = asset[..., 3]
+    if params.asset_occlusion and params.asset_bounces > 0 and params.mode != "envmap":
+        dark = r.render_passes(camera, materials, replace(params, asset_bounces=0), passes)
+        indirect[..., :3] = asset[..., :3] - dark.image[..., :3]
+    return {"beauty": over(asset, lit), "asset": asset, "background": plate,
+            "shadow": shadow, "indirect": indirect}
+
+
+__all__ = ["add_arguments", "run", "over", "render_layers"]

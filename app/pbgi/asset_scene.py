@@ -22,7 +22,7 @@ itself) and the asset's shadow and bounce on the scan (differential rendering).
   colour (the asset's effect is bounded to its neighbourhood, and the gathers cost per point).
   Both gathers run at up to ``SAMPLES`` of the region's points (evenly drawn) and are
   interpolated to the others from the ``NEIGHBOURS`` nearest samples facing the same way
-  (inverse distance x normal agreement): E varies slowly over the scan, the gathers' per-point
+  (a Gaussian of the distance x normal agreement): E varies slowly over the scan, the gathers' per-point
   discretisation noise does not, and the cost stays bounded however dense the scan.
 
 What it does not model: the scan's points are not re-gathered for the asset's own receivers
@@ -46,7 +46,7 @@ REACH = 1.5          # the differential's region: points within (1 + REACH) x th
 FADE = 0.5           # ... the change fading to 0 over its last FADE x the asset radius
 SAMPLES = 2048       # the differential gathers at most this many of them and interpolates
 BOUNCE_SAMPLES = 2048  # the bounce gathers at most this many surfels and interpolates
-NEIGHBOURS = 8       # the interpolation's samples per point
+NEIGHBOURS = 12      # the interpolation's samples per point
 
 
 @dataclass
@@ -95,7 +95,11 @@ def _interpolate(positions, normals, sample: np.ndarray, index: np.ndarray,
     dist, near = dist.reshape(len(index), k), near.reshape(len(index), k)
     agree = np.einsum("nkc,nc->nk", normals[sample][near].astype(np.float64),
                       normals[index].astype(np.float64))
-    w = np.maximum(agree, 0.0) ** 4 / np.maximum(dist, 1e-6)
+    # a Gaussian of the typical distance to the k-th sample: a low-pass over ~k samples (the
+    # gathers' discretisation noise differs from sample to sample, E does not), not 1 / d,
+    # which would give every point its nearest sample's noise back
+    h = max(float(np.median(dist[:, -1])), 1e-9)
+    w = np.maximum(agree, 0.0) ** 4 * np.exp(-(dist / h) ** 2)
     none = w.sum(axis=1) <= 0.0
     w[none, 0] = 1.0                                     # nothing faces the same way: nearest
     w /= w.sum(axis=1, keepdims=True)
@@ -112,6 +116,7 @@ class AssetScene:
         self._direct = None       # (tree key, per-surfel E / pi of the room alone, shadowed)
         self._upload = None       # (key, buffer, NodeTextures, SceneTree)
         self._diff = None         # (key, Differential)
+        self._without = None      # (region key, the differential's gather without the asset)
         self.seconds = 0.0        # building work done by the latest call (0: all cached)
 
     # -- pieces ----------------------------------------------------------------------------
@@ -166,6 +171,22 @@ class AssetScene:
             self._upload = (key, buf, tex, coloured)
         return self._upload[1], self._upload[2], self._upload[3]
 
+    def ready(self, geo_version, mesh, asset_version: int, materials, params) -> bool:
+        """``nodes`` would only look up what is built (no surfels, tree or gather to make)."""
+        count = int(params.asset_surfels)
+        key = (geo_version, asset_version, count)
+        if self._tree is None or self._tree[0] != key or self._surfels is None \
+                or self._surfels[0] != (asset_version, count):
+            return False
+        albedo = surfel_albedo(self._surfels[1], mesh, materials)
+        bounce = (key, int(params.asset_bounces), albedo.tobytes())
+        if self._bounce is not None and self._bounce[0] == bounce:
+            return True
+        # one bounce whose first gather is kept: a material edit only rescales it
+        return int(params.asset_bounces) == 0 or (
+            int(params.asset_bounces) == 1 and self._direct is not None
+            and self._direct[0] == key)
+
     # -- what the Relighter asks -----------------------------------------------------------
     def nodes(self, room, geo_version, mesh, asset_version: int, materials, params) -> SceneNodes:
         """The joined tree's textures, coloured with ``params.asset_bounces`` bounces."""
@@ -180,13 +201,34 @@ class AssetScene:
         return SceneNodes(tex, len(tree), tree.asset_first, ("asset",) + tree_key,
                           coloured.nodes)
 
-    def differential(self, cloud, cloud_version: int, room, room_textures, geo_version, mesh,
-                     asset_version: int, materials, params) -> Differential:
-        """The asset's shadow and bounce on the scan's points near it (module docstring)."""
+    def differential_key(self, cloud_version: int, room, geo_version, mesh,
+                         asset_version: int, materials, params) -> tuple:
+        """What the differential depends on (builds the asset's tree and bounce if needed)."""
         scene = self.nodes(room, geo_version, mesh, asset_version, materials, params)
-        key = (scene.key, hash(self._upload[0][1]), cloud_version)
+        return (scene.key, hash(self._upload[0][1]), cloud_version)
+
+    def differential(self, *args, chunk: int | None = None):
+        """The asset's shadow and bounce on the scan's points near it (module docstring):
+        ``differential_steps`` run to the end."""
+        steps = self.differential_steps(*args, chunk=chunk)
+        while True:
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
+
+    def differential_steps(self, cloud, cloud_version: int, room, room_textures, geo_version,
+                           mesh, asset_version: int, materials, params,
+                           chunk: int | None = None):
+        """A generator: yields the fraction done after each ``chunk`` points gathered (the
+        viewer advances it a step per frame, so the window never waits for all of it) and
+        returns the Differential. The gather without the asset is kept for the next asset or
+        material (it depends on the cloud and the region only)."""
+        key = self.differential_key(cloud_version, room, geo_version, mesh, asset_version,
+                                    materials, params)
         if self._diff is not None and self._diff[0] == key:
             return self._diff[1]
+        scene = self.nodes(room, geo_version, mesh, asset_version, materials, params)
         t0 = time.perf_counter()
         lo, hi = mesh.bounds()
         centre = 0.5 * (np.asarray(lo, np.float64) + np.asarray(hi, np.float64))
@@ -199,8 +241,23 @@ class AssetScene:
         rel = cloud.positions[sample] - room.origin
         nrm = cloud.normals[sample]
         offset = room.cell_size
-        e0 = self.points.run(rel, nrm, room_textures, room.cell_size, offset=offset)
-        e1 = self.points.run(rel, nrm, scene.textures, room.cell_size, offset=offset)
+        chunk = max(int(chunk or len(sample) or 1), 1)
+        region = (cloud_version, sample.tobytes())
+        cached = self._without is not None and self._without[0] == region
+        work = [("with", scene.textures)] + ([] if cached else [("without", room_textures)])
+        parts: dict = {name: [] for name, _ in work}
+        total, done = len(work) * len(sample), 0
+        for name, tex in work:
+            for i in range(0, len(sample), chunk):
+                parts[name].append(self.points.run(rel[i:i + chunk], nrm[i:i + chunk], tex,
+                                                   room.cell_size, offset=offset))
+                done += min(chunk, len(sample) - i)
+                yield done / max(total, 1)
+        joined = {k: np.concatenate(v) if v else np.zeros((0, 3), np.float32)
+                  for k, v in parts.items()}
+        if not cached:
+            self._without = (region, joined["without"])
+        e0, e1 = self._without[1], joined["with"]
         without, with_asset = _interpolate(cloud.positions, cloud.normals, sample, index,
                                            (e0, e1))
         col = np.asarray(cloud.colors[index], np.float32)

@@ -210,18 +210,43 @@ class Relighter:
         return self.asset_scene.nodes(self.hierarchy, self._cloud_version, self.mesh,
                                       self._asset_version, materials, params)
 
-    def differential(self, materials=None, params: RenderParams | None = None):
-        """The asset's shadow and bounce on the scan's points near it
-        (app/pbgi/asset_scene.py: Differential), for ``background(camera, differential)``."""
+    def _differential_args(self, materials, params) -> tuple:
         params = (params or RenderParams()).validated()
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "differential rendering needs a cloud and an asset")
         if not params.asset_occlusion:
             params = replace(params, asset_occlusion=True)
         materials = list(self.mesh.materials if materials is None else materials)
-        return self.asset_scene.differential(
-            self.cloud, self._cloud_version, self.hierarchy, self.node_tex, self._cloud_version,
-            self.mesh, self._asset_version, materials, params)
+        return (self.cloud, self._cloud_version, self.hierarchy, self.node_tex,
+                self._cloud_version, self.mesh, self._asset_version, materials, params)
+
+    def differential(self, materials=None, params: RenderParams | None = None):
+        """The asset's shadow and bounce on the scan's points near it
+        (app/pbgi/asset_scene.py: Differential), for ``background(camera, differential)``."""
+        return self.asset_scene.differential(*self._differential_args(materials, params))
+
+    def differential_steps(self, materials=None, params: RenderParams | None = None,
+                           chunk: int = 256):
+        """The same as a generator of the fraction done (the viewer's progressive version)."""
+        return self.asset_scene.differential_steps(*self._differential_args(materials, params),
+                                                   chunk=chunk)
+
+    def differential_key(self, materials=None, params: RenderParams | None = None) -> tuple:
+        """Changes exactly when ``differential`` would give another result."""
+        args = self._differential_args(materials, params)
+        return self.asset_scene.differential_key(args[1], args[2], *args[4:])
+
+    def asset_scene_ready(self, materials=None, params: RenderParams | None = None) -> bool:
+        """Would a render with ``params`` find the asset's tree and bounce built? (The viewer
+        renders without them while the user drags, rather than wait for a rebuild per frame.)"""
+        params = (params or RenderParams()).validated()
+        if not params.asset_occlusion or params.mode == "envmap":
+            return True
+        if self._asset_scene is None or self.mesh is None:
+            return False
+        materials = list(self.mesh.materials if materials is None else materials)
+        return self._asset_scene.ready(self._cloud_version, self.mesh, self._asset_version,
+                                       materials, params)
 
     def environment(self, face: int):
         from app.pbgi.envmap import EnvironmentMap

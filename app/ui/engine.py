@@ -24,13 +24,21 @@ connected in ``_connect_handlers`` (``app.settings.ChangeHandlers``), in this or
 
 A camera move (any navigation, or the field of view) redraws the room and G-buffer and
 re-gathers; ``frame()`` finds it by comparing cameras, not through the change set.
+
+The asset in the room (app/pbgi/asset_scene.py): while the user drags (``interacting``) and the
+asset's surfel tree or bounce would have to be rebuilt, the previews render without them rather
+than wait for a rebuild per frame; the first render after the drag builds them. Its shadow and
+bounce on the scan (``pbgi.differential``) are gathered once the picture is refined, a few
+hundred points per frame (``Relighter.differential_steps``), and then shown on the splats as a
+per-point factor (L + delta) / L of the lighting cloud's radiance, so the LDR, HDR and expanded
+displays all darken by the same ratio. A moved asset drops the old shadow at once.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -45,6 +53,10 @@ from app.ui.scene import Asset, Cloud, copy_materials, load_cloud_files
 from app.ui.viewport import ViewportRenderer
 
 log = logging.getLogger(__name__)
+
+# scan points the differential gathers per step: a step is the frame's smallest unit of work
+# (tens of ms on llvmpipe), so a drag that starts during one is not swallowed by it
+DIFFERENTIAL_CHUNK = 64
 
 # the session-document keys whose change re-composites the whole picture (room pass included)
 RECOMPOSITE_KEYS = ("files.cloud", "files.hdr_cloud", "files.photo", "files.asset",
@@ -107,6 +119,11 @@ class ViewerEngine:
         self._gi_dirty = True
         self.nav = ViewNavigator(fov_y_deg=session.settings["view.fov_y"])
         self.floor_y: float | None = None     # the scan's floor, for the navigator
+        self._interacting = False
+        self._diff_steps = None         # the differential being gathered (a generator)
+        self._diff_steps_key = None
+        self._diff_shown_key = None     # the differential on the splats (None: plain colours)
+        self.differential_progress = 0.0
         self.changes = ChangeHandlers()
         self._connect_handlers()
         self._init_camera()
@@ -186,6 +203,7 @@ class ViewerEngine:
     def _apply_colors(self) -> None:
         which = self.session.settings["view.cloud"]
         self.view.set_colors(self.cloud.colors(which))
+        self._diff_shown_key = None
         self._room_dirty = True
         lit = self.cloud.lighting(which)
         if self.relighter is not None and lit is not self._lit_cloud:
@@ -219,6 +237,7 @@ class ViewerEngine:
         if self.relighter is not None:
             self.guard("uploading the asset", self.relighter.set_asset, mesh)
         self._gbuffer_dirty = self._gi_dirty = True
+        self._show_differential(None)       # the old shadow is in the wrong place now
 
     def reset_materials(self) -> None:
         if self.asset is not None:
@@ -350,12 +369,20 @@ class ViewerEngine:
         if self._gi_dirty:
             self._restart_gi(cam)
         budget = self.session.settings["pbgi.frame_budget_ms"] if budget_ms is None else budget_ms
+        self._interacting = bool(interacting)
         if self.renderer_available and not self.gi_failed and self.gi.refining:
             self.reset_gl_state()
             t = time.perf_counter()
             if self.gi.step(budget, allow_tiles=not interacting):
                 info["gi"] = True
             self.timings["gi_frame_ms"] = (time.perf_counter() - t) * 1e3
+        elif not interacting:
+            self.reset_gl_state()
+            info["differential"] = self._advance_differential(budget)
+        if self._room_dirty:                # the differential changed the splats' colours
+            self.view.draw_room(cam, self.session.settings["view.splat_scale"])
+            self._room_dirty = False
+            self._composite_dirty = True
         self._upload_gi()
         if self._composite_dirty or self._asset_dirty:
             self._composite(cam, room=self._composite_dirty)
@@ -417,9 +444,73 @@ class ViewerEngine:
                             asset_rect=rect, label_rect=label, room=room)
         self._composite_dirty = self._asset_dirty = False
 
+    # -- the asset's shadow and bounce on the scan ---------------------------------------------
+    def _differential_params(self):
+        s = self.session.settings
+        if (not self.renderer_available or self.mesh is None or self.cloud is None
+                or not s["pbgi.differential"] or s["view.cloud"] == "difference"):
+            return None
+        return RenderParams.from_settings(s)
+
+    def _advance_differential(self, budget_ms: float) -> bool:
+        """Gather the differential for ``budget_ms``; show it when done. True: it changed."""
+        params = self._differential_params()
+        if params is None:
+            self._diff_steps = None
+            return self._show_differential(None)
+        mats = self.session.materials
+        key = self.guard("the asset's shadow", self.relighter.differential_key, mats, params)
+        if key is None or key == self._diff_shown_key:
+            return False
+        if self._diff_steps is None or self._diff_steps_key != key:
+            self._diff_steps = self.relighter.differential_steps(mats, params,
+                                                                 chunk=DIFFERENTIAL_CHUNK)
+            self._diff_steps_key = key
+            self.differential_progress = 0.0
+        t0 = time.perf_counter()
+        try:
+            while (time.perf_counter() - t0) * 1e3 < budget_ms:
+                self.differential_progress = next(self._diff_steps)
+        except StopIteration as done:
+            self._diff_steps = None
+            self.differential_progress = 1.0
+            return self._show_differential(done.value, key)
+        except Exception as exc:            # a failure is a message; do not retry this key
+            self._diff_steps = None
+            self._diff_shown_key = key
+            if isinstance(exc, ScanlightError):
+                self.error(f"the asset's shadow on the scan: {exc}")
+            else:
+                log.exception("differential rendering failed")
+                self.error(f"the asset's shadow on the scan failed: {type(exc).__name__}: {exc}")
+        return False
+
+    def _show_differential(self, diff, key=None) -> bool:
+        """Put ``diff`` on the splats (None: the plain colours). True: the colours changed."""
+        if diff is None and self._diff_shown_key is None:
+            return False
+        base = self.cloud.colors(self.session.settings["view.cloud"])
+        if diff is None:
+            self.view.set_colors(base)
+        else:
+            lit = np.asarray(self._lit_cloud.colors if self._lit_cloud is not None
+                             else base, np.float32)[diff.index]
+            factor = np.clip((lit + diff.delta) / np.maximum(lit, 1e-6), 0.0, 4.0)
+            cols = np.array(base, np.float32, copy=True)
+            cols[diff.index] = cols[diff.index] * factor
+            if self.session.settings["view.cloud"] == "ldr":
+                np.minimum(cols, 1.0, out=cols)     # an 8-bit scan stays within its range
+            self.view.set_colors(cols)
+        self._diff_shown_key = key if diff is not None else None
+        self._room_dirty = True
+        return True
+
     def _render_gi(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
         s = self.session.settings
         params = RenderParams.from_settings(s)
+        if (self._interacting and params.asset_occlusion and self.relighter is not None
+                and not self.relighter.asset_scene_ready(self.session.materials, params)):
+            params = replace(params, asset_occlusion=False)   # built after the drag
         try:
             res = self.relighter.render(camera, self.session.materials, params, tile=tile,
                                         pass_index=pass_index)
@@ -455,6 +546,10 @@ class ViewerEngine:
         self.reset_gl_state()
         if self.renderer_available and not self.gi_failed:
             self.gi.finish()
+            self._advance_differential(float("inf"))   # batch images never depend on timing
+            if self._room_dirty:
+                self.view.draw_room(cam, self.session.settings["view.splat_scale"])
+                self._room_dirty = False
         self._upload_gi()
         self._composite(cam)
 

@@ -5,6 +5,7 @@ micro-buffer 8; tests/support/viewer.py), its calls counted by a spy that leaves
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -69,8 +70,10 @@ def test_bilateral_upsampling_keeps_colours_on_their_side_of_a_depth_edge():
 def test_changes_redo_only_what_depends_on_them(ctx, renders):
     """Counted on the real renderer: display settings redo no GI; a BRDF slider re-gathers the
     asset (and changes its pixels, not the room's); a camera move while interacting renders
-    only the reduced-resolution preview."""
+    only the reduced-resolution preview. (The asset's shadow and bounce on the scan do depend
+    on its materials: off here, tested in test_the_assets_shadow_lands_on_the_scan.)"""
     e = make_engine(ctx)
+    e.session.settings.set("pbgi.differential", False)
     e.frame()
     e.finish_refinement()
     before = e.view.read_linear()
@@ -136,9 +139,11 @@ def test_each_change_key_has_its_handler(ctx, renders):
 
 def test_moving_the_asset_redraws_its_g_buffer(ctx, renders):
     """A new placement (gizmo, transform fields) without a camera move: the picture shows the
-    asset where it now is, as a viewer opened on the moved asset would."""
+    asset where it now is, as a viewer opened on the moved asset would. (Its shadow on the
+    scan moves too and redraws the splats: off here, see test_the_assets_shadow_lands_on_the_scan.)"""
     from dataclasses import replace
     e = make_engine(ctx)
+    e.session.settings.set("pbgi.differential", False)
     e.frame()
     e.finish_refinement()
     moved = replace(e.session.transform,
@@ -150,6 +155,7 @@ def test_moving_the_asset_redraws_its_g_buffer(ctx, renders):
     s = small_session()
     s.set_transform(moved)
     fresh = make_engine(ctx, session=s)
+    fresh.session.settings.set("pbgi.differential", False)
     fresh.frame()
     fresh.finish_refinement()
     np.testing.assert_array_equal(e.view.read_linear()[..., 3] > 0,
@@ -395,3 +401,34 @@ def test_capture_preview_sees_the_room_in_six_directions(ctx, renders):
             assert cell.max() == 0, key
     # up (+Y) sees the bright ceiling light more than down (-Y) sees the floor
     assert cells[(0, 1)].max() >= cells[(2, 1)].max()
+
+
+def test_the_assets_shadow_lands_on_the_scan(ctx):
+    """Once the picture is refined the scan's points near the asset get its shadow: the splats
+    under the demo sphere darken (the room's pixels elsewhere do not change), a moved asset
+    drops the old shadow at once, and switching the differential off restores the scan."""
+    e = make_engine(ctx, (96, 72))
+    s = e.session.settings
+    s.set("pbgi.differential", False)
+    e.frame()
+    e.finish_refinement()
+    plain = e.view.read_linear()
+    s.set("pbgi.differential", True)
+    e.frame()
+    e.finish_refinement()
+    assert e._diff_shown_key is not None and e.differential_progress == 1.0
+    shadowed = e.view.read_linear()
+    room = (plain[..., 3] == 0) & (shadowed[..., 3] == 0)    # alpha = asset
+    lum = lambda img: img[..., :3].mean(axis=-1)    # noqa: E731
+    darker = room & (lum(shadowed) < 0.9 * lum(plain))
+    assert darker.sum() > 20                        # a shadow, on the room's pixels
+    brighter = room & (lum(shadowed) > 1.1 * lum(plain) + 1e-3)
+    assert brighter.sum() < 0.2 * darker.sum()
+    t = e.session.transform
+    e.session.set_transform(replace(t, translate=(t.translate[0] + 0.5, t.translate[1],
+                                                  t.translate[2])))
+    e.frame(interacting=True)
+    assert e._diff_shown_key is None                # the old shadow is gone with the move
+    s.set("pbgi.differential", False)
+    e.finish_refinement()
+    assert e._diff_shown_key is None

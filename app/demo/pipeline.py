@@ -108,7 +108,7 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
         for name, img in images.items():
             comp = img[..., :3] * img[..., 3:] + background * (1 - img[..., 3:])
             from app.io.exr import write_exr
-            write_exr(out / f"relit_{view}_{name}.exr", img[..., :3])
+            write_exr(out / f"relit_{view}_{name}.exr", img)   # RGBA: A = coverage
             _save_png(out / f"relit_{view}_{name}.png", comp)
     timings["relight_s"] = time.perf_counter() - t
     for view, errs in renders.items():

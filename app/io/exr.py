@@ -4,11 +4,18 @@ Readers return a ``LinearImage``: the pixels plus a report of what was repaired 
 +Inf pixels, see app.io.clean), so callers can show the user what the file really held. Radiance
 ``.hdr`` is refused with a clear message: no maintained reader is installed (imageio needs a
 FreeImage download, Pillow cannot read it), and OpenEXR covers the same use.
+
+Renders carry their coverage: ``write_exr`` takes RGBA (channels R, G, B, A, premultiplied as
+OpenEXR expects), and ``write_exr_layers`` writes compositing layers into one single-part file as
+``<layer>.R/G/B[/A]`` (or ``<layer>.Y``), the channel naming Nuke, Blender and OpenEXR's own
+tools group into layers. ``read_exr_layers`` reads them back; ``read_exr`` of such a file shows
+its "beauty" layer (else the first RGB layer) and says which in ``report["layer"]``.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +34,10 @@ EXR_EXTENSIONS = (".exr",)
 HDR_EXTENSIONS = (".hdr", ".pic")
 LDR_EXTENSIONS = (".png", ".jpg", ".jpeg")
 IMAGE_EXTENSIONS = EXR_EXTENSIONS + HDR_EXTENSIONS + LDR_EXTENSIONS
+
+# header attribute of write_exr_layers: the layers' order (channels are stored sorted by name)
+LAYERS_ATTRIBUTE = "scanlightLayers"
+_LAYER_NAME = re.compile(r"[A-Za-z0-9_]+")
 
 
 @dataclass
@@ -53,25 +64,58 @@ def _finish(rgb: np.ndarray, hdr: bool, path: Path, report: dict) -> LinearImage
     return LinearImage(rgb, hdr, str(path), report)
 
 
-def _pick_rgb(channels: dict, path: Path) -> np.ndarray:
-    """(H, W, 3) from separately read EXR channels: R,G,B (A ignored), else Y as grey."""
+def _pick_rgb(channels: dict, path: Path, layer_order=None) -> tuple[np.ndarray, str | None]:
+    """(H, W, 3) from separately read EXR channels (name -> pixels): R,G,B (A ignored), else Y
+    as grey; a file holding only layered channels gives its "beauty" layer, else the first layer
+    with R,G,B (``layer_order``, else sorted), so our own --layers files open in the viewer. The
+    second value names the layer used (None: the unprefixed channels)."""
     names = set(channels)
+    layer = None
     if {"R", "G", "B"} <= names:
-        planes = [channels[c].pixels for c in "RGB"]
+        planes = [channels[c] for c in "RGB"]
     elif "Y" in names:
         if names & {"RY", "BY"}:
             raise ScanlightError(path, "luminance/chroma (YC) EXR images are not supported; "
                                        "save it as RGB")
-        planes = [channels["Y"].pixels] * 3
+        planes = [channels["Y"]] * 3
     else:
-        raise ScanlightError(path, f"EXR has no R,G,B or Y channels (found: "
-                                   f"{', '.join(sorted(names)) or 'none'})")
+        groups = _layer_groups(names)
+        rgb_layers = [n for n in _ordered(groups, layer_order)
+                      if n and {"R", "G", "B"} <= groups[n]]
+        if not rgb_layers:
+            raise ScanlightError(path, f"EXR has no R,G,B or Y channels (found: "
+                                       f"{', '.join(sorted(names)) or 'none'})")
+        layer = "beauty" if "beauty" in rgb_layers else rgb_layers[0]
+        planes = [channels[f"{layer}.{c}"] for c in "RGB"]
+    return _stack(planes, path), layer
+
+
+def _stack(planes: list, path: Path) -> np.ndarray:
     shapes = {p.shape for p in planes}
     if len(shapes) != 1 or len(next(iter(shapes))) != 2:
         raise ScanlightError(path, "EXR colour channels are subsampled or differ in size")
     return np.stack([np.asarray(p, dtype=np.float32) for p in planes], axis=-1)
 
 
+def _layer_groups(names) -> dict[str, set[str]]:
+    """Channel names grouped by layer: "a.b.R" -> layer "a.b", channel "R"; "R" -> layer ""."""
+    groups: dict[str, set[str]] = {}
+    for name in names:
+        layer, _, chan = name.rpartition(".")
+        groups.setdefault(layer, set()).add(chan)
+    return groups
+
+
+def _ordered(groups: dict, layer_order) -> list[str]:
+    """The layers in the order the file's attribute lists (its own names only), then the rest
+    sorted: the channels themselves are stored sorted by name, so the order is lost without it."""
+    first = [n for n in (layer_order or []) if n in groups]
+    return first + sorted(n for n in groups if n not in first)
+
+
+def _layer_order(header: dict) -> list[str] | None:
+    value = header.get(LAYERS_ATTRIBUTE)
+    return value.split(",") if isinstance(value, str) and value else None
 
 
 def _check_pixels(p: Path, width: int, height: int) -> None:
@@ -80,12 +124,12 @@ def _check_pixels(p: Path, width: int, height: int) -> None:
                                 f"{MAX_IMAGE_PIXELS:,} pixels")
 
 
-def read_exr(path) -> LinearImage:
-    """An OpenEXR image: half or float; RGB, RGBA -> RGB, Y -> grey; the first part only."""
-    p = require_file(path, "EXR image", EXR_EXTENSIONS)
+def _open_exr(p: Path):
+    """(first part's channels: name -> 2-D pixels, its header, number of parts); the size is
+    checked from the header alone first, so nothing is allocated for a huge image."""
     import OpenEXR
 
-    try:   # the size first, from the header alone: nothing is allocated for a huge image
+    try:
         with OpenEXR.File(str(p), header_only=True) as f:
             windows = [part.header["dataWindow"] for part in f.parts]
         # every part is decoded when the file is opened, so all of them count
@@ -96,46 +140,132 @@ def read_exr(path) -> LinearImage:
             raise ScanlightError(p, f"EXR of {len(sizes)} parts holds "
                                     f"{sum(w * h for w, h in sizes):,} pixels, more than the "
                                     f"limit of {MAX_IMAGE_PIXELS:,}")
-    except ScanlightError:
-        raise
-    except Exception as exc:  # OpenEXR raises RuntimeError/ValueError for corrupt files
-        raise ScanlightError(p, f"corrupt or truncated EXR ({exc})") from None
-    try:
         with OpenEXR.File(str(p), separate_channels=True) as f:
-            n_parts = len(f.parts)
-            if n_parts == 0:
+            if len(f.parts) == 0:
                 raise ValueError("file has no readable parts")
-            rgb = _pick_rgb(f.parts[0].channels, p)
+            # the pixel arrays, taken while the file is open (its channel dict empties on close)
+            return ({name: ch.pixels for name, ch in f.parts[0].channels.items()},
+                    dict(f.parts[0].header), len(f.parts))
     except ScanlightError:
         raise
     except Exception as exc:  # OpenEXR raises RuntimeError/ValueError for corrupt files
         raise ScanlightError(p, f"corrupt or truncated EXR ({exc})") from None
+
+
+def read_exr(path) -> LinearImage:
+    """An OpenEXR image: half or float; RGB, RGBA -> RGB, Y -> grey; the first part only.
+    A file of layered channels only (write_exr_layers) gives its "beauty" layer, else the first
+    layer with R,G,B; ``report["layer"]`` names it."""
+    p = require_file(path, "EXR image", EXR_EXTENSIONS)
+    channels, header, n_parts = _open_exr(p)
+    rgb, layer = _pick_rgb(channels, p, _layer_order(header))
     if rgb.size == 0:
         raise ScanlightError(p, "EXR image has no pixels")
     report = {"parts": n_parts} if n_parts > 1 else {}
+    if layer is not None:
+        report["layer"] = layer
+        log.info("%s: no plain R,G,B channels; showing layer %r", p, layer)
     return _finish(rgb, True, p, report)
 
 
-def write_exr(path, rgb, half: bool = False) -> None:
-    """Write (H, W, 3) linear RGB (or (H, W) as Y) atomically, ZIP-compressed.
+def read_exr_layers(path) -> dict[str, np.ndarray]:
+    """Every layer of an EXR's first part, float32 as stored (not repaired: a compositing layer's
+    negative or alpha values are the caller's to judge): ``<layer>.R/G/B`` -> (H, W, 3), with
+    ``<layer>.A`` -> (H, W, 4), ``<layer>.Y`` alone -> (H, W). Plain R,G,B(,A) or Y come back as
+    layer "". Groups that are not colour (e.g. Blender's Normal.X/Y/Z, depth Z) are skipped.
+    In the order written (the ``scanlightLayers`` attribute), else sorted by name."""
+    p = require_file(path, "EXR image", EXR_EXTENSIONS)
+    channels, header, _ = _open_exr(p)
+    groups = _layer_groups(channels)
+    out: dict[str, np.ndarray] = {}
+    for layer in _ordered(groups, _layer_order(header)):
+        chans = groups[layer]
+        key = (lambda c: f"{layer}.{c}") if layer else (lambda c: c)
+        if {"R", "G", "B"} <= chans:
+            names = list("RGBA" if "A" in chans else "RGB")
+            out[layer] = _stack([channels[key(c)] for c in names], p)
+        elif "Y" in chans and not chans & {"X", "Z", "RY", "BY"}:   # not a vector, not YC
+            out[layer] = _stack([channels[key("Y")]], p)[..., 0]
+        else:
+            log.debug("%s: channels %s of layer %r are not a colour layer; skipped", p,
+                      sorted(chans), layer)
+    if not out:
+        raise ScanlightError(p, f"EXR has no R,G,B or Y channels in any layer (found: "
+                                f"{', '.join(sorted(channels)) or 'none'})")
+    if any(a.size == 0 for a in out.values()):
+        raise ScanlightError(p, "EXR image has no pixels")
+    return out
+
+
+def _exr_pixels(image, half: bool, what: str) -> np.ndarray:
+    """float32 (or clipped float16) (H, W), (H, W, 3) or (H, W, 4); ValueError otherwise."""
+    a = np.asarray(image, dtype=np.float32)
+    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))) or a.size == 0:
+        raise ValueError(f"{what} needs a non-empty (H, W, 3), (H, W, 4) or (H, W) array, "
+                         f"got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what}: image holds NaN or Inf")
+    if half:
+        a = np.clip(a, -HALF_MAX, HALF_MAX).astype(np.float16)
+    return np.ascontiguousarray(a)
+
+
+def _write_channels(path, channels: dict, extra_header: dict | None = None) -> None:
+    import OpenEXR
+
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header.update(extra_header or {})
+    with atomic_output(path) as tmp:
+        with OpenEXR.File(header, channels) as f:
+            f.write(str(tmp))
+
+
+def write_exr(path, image, half: bool = False) -> None:
+    """Write (H, W, 3) linear RGB, (H, W, 4) RGBA (alpha = coverage, RGB premultiplied as
+    OpenEXR expects) or (H, W) as Y, atomically, ZIP-compressed.
 
     half=True stores float16; values are first clipped to +-65504 so no Inf is written.
     Non-finite input is a programming error (ValueError): files we write never hold NaN/Inf.
     """
-    import OpenEXR
+    a = _exr_pixels(image, half, "write_exr")
+    _write_channels(path, {"Y" if a.ndim == 2 else "RGBA"[:a.shape[2]]: a})
 
-    a = np.asarray(rgb, dtype=np.float32)
-    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] == 3)) or a.size == 0:
-        raise ValueError(f"write_exr needs a non-empty (H, W, 3) or (H, W) array, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError("write_exr: image holds NaN or Inf")
-    if half:
-        a = np.clip(a, -HALF_MAX, HALF_MAX).astype(np.float16)
-    channels = {"Y": np.ascontiguousarray(a)} if a.ndim == 2 else {"RGB": np.ascontiguousarray(a)}
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with atomic_output(path) as tmp:
-        with OpenEXR.File(header, channels) as f:
-            f.write(str(tmp))
+
+def write_exr_layers(path, layers: dict, half: bool = False) -> None:
+    """Write compositing layers into ONE single-part scanline EXR, atomically, ZIP-compressed.
+
+    ``layers``: name -> (H, W, 3) / (H, W, 4) / (H, W) (a dict, or (name, image) pairs), all
+    of one size, stored as channels ``<name>.R/G/B[/A]`` or ``<name>.Y``: the layer convention
+    Nuke, Blender and OpenEXR's tools read, where a multi-part file would not open everywhere
+    (nor in read_exr, which reads the first part). OpenEXR stores channels sorted by
+    name, so the order given is kept in the ``scanlightLayers`` header attribute for
+    read_exr_layers. Bad names (not [A-Za-z0-9_]+ or repeated), sizes or NaN/Inf are programming
+    errors (ValueError), as in write_exr; half=True clips and rounds as there.
+    """
+    items = list(layers.items()) if hasattr(layers, "items") else list(layers)
+    if not items:
+        raise ValueError("write_exr_layers needs at least one layer")
+    names = [name for name, _ in items]
+    for name in names:
+        if not isinstance(name, str) or not _LAYER_NAME.fullmatch(name):
+            raise ValueError(f"write_exr_layers: layer name {name!r} is not [A-Za-z0-9_]+")
+    if len(set(names)) != len(names):
+        raise ValueError(f"write_exr_layers: layer names repeat ({', '.join(names)})")
+    channels = {}
+    size = None
+    for name, image in items:
+        a = _exr_pixels(image, half, f"write_exr_layers (layer {name!r})")
+        if size is None:
+            size = a.shape[:2]
+        elif a.shape[:2] != size:
+            raise ValueError(f"write_exr_layers: layer {name!r} is {a.shape[1]}x{a.shape[0]}, "
+                             f"not {size[1]}x{size[0]} like the first")
+        if a.ndim == 2:
+            channels[f"{name}.Y"] = a
+        else:
+            for i, c in enumerate("RGBA"[:a.shape[2]]):
+                channels[f"{name}.{c}"] = np.ascontiguousarray(a[..., i])
+    _write_channels(path, channels, {LAYERS_ATTRIBUTE: ",".join(names)})
 
 
 def read_hdr(path) -> LinearImage:

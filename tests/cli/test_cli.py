@@ -64,3 +64,8 @@ def test_view_without_display_falls_back_to_demo(tmp_path, monkeypatch):
         assert errs["expanded"]["render_rel_rms"] < 0.5 * errs["ldr"]["render_rel_rms"]
     for name in ("room_ldr.ply", "room_hdr.ply", "photo.exr", "relit_closeup_expanded.png"):
         assert (tmp_path / "out" / name).is_file()
+    import numpy as np
+
+    from app.io.exr import read_exr_layers
+    relit = read_exr_layers(tmp_path / "out" / "relit_closeup_expanded.exr")[""]
+    assert relit.shape[-1] == 4 and set(np.unique(relit[..., 3])) == {0.0, 1.0}  # A = coverage

@@ -11,7 +11,7 @@ import pytest
 
 from tests.support import scenes as S
 from app.cli import main
-from app.io.exr import read_exr
+from app.io.exr import read_exr, read_exr_layers
 from app.io.pointcloud import save_cloud
 
 
@@ -66,14 +66,16 @@ def test_render_matches_the_api(inputs):
     from app.pbgi.renderer import Relighter, RenderParams
     d = inputs
     assert main(_args(d, "--microbuffer", "8")) == 0
-    cli = read_exr(d / "out.exr").rgb
+    cli = read_exr_layers(d / "out.exr")[""]          # RGBA: the EXR carries the coverage
     r = Relighter()
     c = load_cloud(d / "room.ply")
     r.set_cloud(PointCloud(c.positions, c.normals, c.colors, hdr=True))
     r.set_asset(placed_mesh(load_object(d / "obj.json")))
     api = r.render(load_camera(d / "cam.json"), [load_material(d / "mat.json")],
-                   RenderParams(microbuffer=8)).image[..., :3]
+                   RenderParams(microbuffer=8)).image
+    assert cli.shape == api.shape == (12, 16, 4)
     assert np.allclose(cli, api, rtol=1e-5, atol=1e-6)
+    assert 0 < cli[..., 3].sum() < cli[..., 3].size and np.array_equal(cli[..., 3], api[..., 3])
 
 
 def test_render_passes_average_jittered_renders(inputs, capsys):
@@ -88,8 +90,10 @@ def test_render_passes_average_jittered_renders(inputs, capsys):
     stats = json.loads((d / "st.json").read_text())
     assert stats["passes"] == 4 and stats["completed"] is True
     four = read_exr(d / "out.exr").rgb
+    four_alpha = read_exr_layers(d / "out.exr")[""][..., 3]
     assert main(_args(d, "--microbuffer", "8", "--background", "--size", "32x24")) == 0
     one = read_exr(d / "out.exr").rgb
+    one_alpha = read_exr_layers(d / "out.exr")[""][..., 3]
     assert np.isfinite(four).all() and four.shape == one.shape
     r = Relighter()
     from app.io.pointcloud import load_cloud
@@ -107,6 +111,9 @@ def test_render_passes_average_jittered_renders(inputs, capsys):
     assert ((a > 0) & (a < 1)).any() and set(np.unique(a)) <= {0.0, 0.25, 0.5, 0.75, 1.0}
     expect = res.image[..., :3] + r.background(cam)[..., :3] * (1.0 - a[..., None])
     np.testing.assert_allclose(four, expect, rtol=1e-4, atol=1e-6)
+    # the EXR's alpha: with --background, max(object coverage, splats' coverage)
+    np.testing.assert_array_equal(four_alpha, np.maximum(a, r.background(cam)[..., 3]))
+    assert set(np.unique(one_alpha)) <= {0.0, 1.0}
 
 
 def _scanlight(*args):

@@ -566,6 +566,26 @@ def build_bsh(positions, normals, colors, cell_size: float | None = None, tc: fl
                      params=params, stats=stats)
 
 
+def recolor(hierarchy, colors: np.ndarray) -> np.ndarray:
+    """Node records with colours recomputed from new point colours on the same tree.
+
+    Every node's colour is the mean of the points below it (app.pbgi.hierarchy); in depth-first
+    order a subtree is the index range [i, skip(i)), so prefix sums of per-leaf colour sums give
+    every subtree sum at once.
+    """
+    nodes = hierarchy.nodes.copy()
+    m = len(nodes)
+    leaf_sum = np.zeros((m, 3))
+    np.add.at(leaf_sum, hierarchy.point_node, np.asarray(colors, dtype=np.float64))
+    prefix = np.zeros((m + 1, 3))
+    np.cumsum(leaf_sum, axis=0, out=prefix[1:])
+    skip = nodes["skip"].astype(np.int64)
+    sums = prefix[skip] - prefix[np.arange(m)]
+    count = (nodes["count_flags"] & layout.COUNT_MASK).astype(np.float64)
+    nodes["color"] = (sums / np.maximum(count, 1.0)[:, None]).astype(np.float32)
+    return nodes
+
+
 def build_bsh_from_cloud(cloud, **params) -> Hierarchy:
     """build_bsh on an app.cloud.PointCloud (same keyword parameters); errors name its source."""
     try:

@@ -29,6 +29,7 @@ import numpy as np
 from app.errors import ScanlightError
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
 from app.pbgi.gpu_layout import GATHER_OUTPUT, RECEIVER
+from app.pbgi.hierarchy import recolor
 from app.pbgi.microbuffer import MicroBuffers, entries
 from app.pbgi.lobe import LobeBuffers, LobeSettings, needs_lobe, surface_radius
 from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
@@ -52,27 +53,6 @@ def _fingerprint(*arrays) -> str:
         h.update(str((a.dtype, a.shape)).encode())
         h.update(a.data)
     return h.hexdigest()
-
-
-def recolor(hierarchy, colors: np.ndarray) -> np.ndarray:
-    """Node records with colours recomputed from new point colours on the same tree.
-
-    Every node's colour is the mean of the points below it (app.pbgi.hierarchy); in depth-first
-    order a subtree is the index range [i, skip(i)), so prefix sums of per-leaf colour sums give
-    every subtree sum at once.
-    """
-    nodes = hierarchy.nodes.copy()
-    m = len(nodes)
-    leaf_sum = np.zeros((m, 3))
-    np.add.at(leaf_sum, hierarchy.point_node, np.asarray(colors, dtype=np.float64))
-    prefix = np.zeros((m + 1, 3))
-    np.cumsum(leaf_sum, axis=0, out=prefix[1:])
-    skip = nodes["skip"].astype(np.int64)
-    sums = prefix[skip] - prefix[np.arange(m)]
-    from app.pbgi.layout import COUNT_MASK
-    count = (nodes["count_flags"] & COUNT_MASK).astype(np.float64)
-    nodes["color"] = (sums / np.maximum(count, 1.0)[:, None]).astype(np.float32)
-    return nodes
 
 
 _BSH_CACHE: dict[str, object] = {}

@@ -10,7 +10,7 @@ conservatively like the hierarchy's own records: the radius grows by the roundin
 
 ``asset_first`` (= 1 + R) is the first asset node: shaders that treat the two differently (the
 lobe walk grows the scan's leaves by the scan spacing, not the asset's) compare against it.
-Colours: the asset's part is recoloured from per-surfel radiance (app.pbgi.renderer.recolor on
+Colours: the asset's part is recoloured from per-surfel radiance (app.pbgi.hierarchy.recolor on
 the asset tree) and the root's colour follows; the structure, hence every cut, is unchanged, so a
 new bounce keeps the micro-buffers' cut valid.
 """
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.pbgi import layout
-from app.pbgi.hierarchy import Hierarchy, build_bsh, merge_spheres, round_spheres
+from app.pbgi.hierarchy import Hierarchy, build_bsh, merge_spheres, recolor, round_spheres
 
 
 @dataclass
@@ -81,7 +81,6 @@ def _set_root(nodes: np.ndarray, left: int, right: int) -> None:
 
 def recolor_asset(tree: SceneTree, colors: np.ndarray) -> SceneTree:
     """The same tree with the asset's nodes coloured from per-surfel ``colors`` (radiance)."""
-    from app.pbgi.renderer import recolor
     nodes = tree.nodes.copy()
     nodes["color"][tree.asset_first:] = recolor(tree.asset, colors)["color"]
     _set_root(nodes, 1, tree.asset_first)

@@ -15,7 +15,8 @@ The scene is what PBGI assumes, rendered without any of PBGI's approximations:
   differ where Mitsuba follows Burley 2015 rather than the 2012 BRDF explorer we transcribe
   (see ``CONVENTIONS``): metals agree term by term, dielectrics differ at grazing angles;
 * the ``path`` integrator, depth ``max_depth`` (2: camera -> asset -> room, all a convex asset
-  needs; the asset-in-room issue raises it), box pixel filter (a pixel's value is the mean over its
+  needs; 3 for the asset in the room, app/bench/asset_scenes.py: one inter-reflection of the
+  asset, and the asset's bounce onto a shadow catcher), box pixel filter (a pixel's value is the mean over its
   footprint), ``spp`` samples per pixel split into two independent halves whose difference gives
   the reference's own noise floor.
 
@@ -144,8 +145,11 @@ class Reference:
 
 
 def build_scene(cloud: PointCloud, mesh, material, camera: Camera, side: float,
-                max_depth: int = 2, emitter_scale: float = 1.0):
-    """The Mitsuba scene object (loading it is the slow part: keep it out of timings)."""
+                max_depth: int = 2, emitter_scale: float = 1.0, catcher=None):
+    """The Mitsuba scene object (loading it is the slow part: keep it out of timings).
+    ``mesh`` None: no asset (the catcher's unshadowed image). ``catcher``: (x0, x1, z0, z1, y,
+    albedo), a diffuse rectangle facing up at height y - a shadow catcher over the scan's
+    floor (it hides the floor's emitting squares just below it)."""
     mi = _mitsuba()
     v, f, uv, atlas = cloud_squares(cloud.positions, cloud.normals, cloud.colors, side)
     radiance = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(atlas * emitter_scale)),
@@ -153,8 +157,17 @@ def build_scene(cloud: PointCloud, mesh, material, camera: Camera, side: float,
     room = _mesh(mi, "room", v, f, uvs=uv,
                  bsdf={"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0] * 3}},
                  emitter={"type": "area", "radiance": radiance})
-    asset = _mesh(mi, "asset", mesh.positions, mesh.indices, normals=mesh.normals,
-                  bsdf=principled_dict(material))
+    shapes = {"room": room}
+    if mesh is not None:
+        shapes["asset"] = _mesh(mi, "asset", mesh.positions, mesh.indices, normals=mesh.normals,
+                                bsdf=principled_dict(material))
+    if catcher is not None:
+        x0, x1, z0, z1, y, albedo = catcher
+        quad = np.array([[x0, y, z0], [x0, y, z1], [x1, y, z1], [x1, y, z0]], np.float64)
+        shapes["catcher"] = _mesh(mi, "catcher", quad, np.array([[0, 1, 2], [0, 2, 3]]),
+                                  normals=np.tile([0.0, 1.0, 0.0], (4, 1)),
+                                  bsdf={"type": "diffuse", "reflectance":
+                                        {"type": "rgb", "value": [float(albedo)] * 3}})
     up = camera.up
     sensor = {"type": "perspective", "fov": float(camera.fov_y_deg), "fov_axis": "y",
               "near_clip": 1e-3, "far_clip": 1e4,
@@ -167,7 +180,7 @@ def build_scene(cloud: PointCloud, mesh, material, camera: Camera, side: float,
               "sampler": {"type": "independent", "sample_count": 1}}
     return mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": max_depth,
                                                          "hide_emitters": False},
-                         "sensor": sensor, "room": room, "asset": asset})
+                         "sensor": sensor, **shapes})
 
 
 def render_reference(scene, spp: int, seed: int = 0) -> Reference:

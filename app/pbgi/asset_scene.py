@@ -42,8 +42,8 @@ from app.pbgi.point_gather import PointGather
 from app.pbgi.scene_tree import SceneTree, asset_hierarchy, join, recolor_asset
 from app.pbgi.surfels import Surfels, sample_surfels, surfel_albedo
 
-REACH = 1.5          # the differential's region: points within (1 + REACH) x the asset radius
-FADE = 0.5           # ... the change fading to 0 over its last FADE x the asset radius
+REACH = 2.0          # the differential's region: points within (1 + REACH) x the asset radius
+FADE = 0.75          # ... the change fading to 0 over its last FADE x the asset radius
 SAMPLES = 2048       # the differential gathers at most this many of them and interpolates
 BOUNCE_SAMPLES = 2048  # the bounce gathers at most this many surfels and interpolates
 NEIGHBOURS = 12      # the interpolation's samples per point

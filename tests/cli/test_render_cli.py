@@ -81,17 +81,19 @@ def test_render_matches_the_api(inputs):
 def test_render_passes_average_jittered_renders(inputs, capsys):
     """--passes N writes the mean of Relighter.render_passes (N jittered passes): its stats say
     so, the silhouette's pixels are partly covered (anti-aliased), and the background composite
-    treats the mean as premultiplied by its coverage (straight alpha would darken the fringe)."""
+    treats the mean as premultiplied by its coverage (straight alpha would darken the fringe).
+    (The asset's shadow on the scan is off here: test_render_layers_for_compositing.)"""
     from app.pbgi.renderer import Relighter, RenderParams
     d = inputs
     assert main(_args(d, "--microbuffer", "8", "--passes", "4", "--stats", str(d / "st.json"),
-                      "--background", "--size", "32x24")) == 0
+                      "--background", "--size", "32x24", "--differential", "false")) == 0
     assert "4 passes" in capsys.readouterr().out
     stats = json.loads((d / "st.json").read_text())
     assert stats["passes"] == 4 and stats["completed"] is True
     four = read_exr(d / "out.exr").rgb
     four_alpha = read_exr_layers(d / "out.exr")[""][..., 3]
-    assert main(_args(d, "--microbuffer", "8", "--background", "--size", "32x24")) == 0
+    assert main(_args(d, "--microbuffer", "8", "--background", "--size", "32x24",
+                      "--differential", "false")) == 0
     one = read_exr(d / "out.exr").rgb
     one_alpha = read_exr_layers(d / "out.exr")[""][..., 3]
     assert np.isfinite(four).all() and four.shape == one.shape
@@ -148,3 +150,35 @@ def test_bad_input_files_exit_3_naming_the_file(inputs, tmp_path):
     res = _scanlight(*args)
     assert res.returncode == 3 and "missing.ply" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_render_layers_for_compositing(inputs):
+    """--layers writes one EXR with the compositing layers in order, channels <layer>.R/G/B/A:
+    the asset layer is the --out image; beauty is the asset over the background with the
+    asset's shadow (background + shadow); the shadow darkens the room somewhere (under the
+    sphere) and brightens little; the indirect layer is the asset's own bounce (zero without
+    bounces), on the asset's pixels only."""
+    d = inputs
+    lay = d / "layers.exr"
+    (d / "top.json").write_text(json.dumps({"position": [0.6, 1.6, 0.8], "look_at": [0, 0.2, 0],
+                                            "fov_y_deg": 60, "width": 32, "height": 24}))
+    (d / "low.json").write_text(json.dumps({"mesh": "sphere", "translate": [0, 0.4, 0],
+                                            "scale": 0.6}))
+    top = ["--camera", str(d / "top.json"), "--object", str(d / "low.json")]   # sees its floor
+    assert main(_args(d, "--microbuffer", "8", "--layers", str(lay), *top)) == 0
+    layers = read_exr_layers(lay)
+    assert list(layers) == ["beauty", "asset", "background", "shadow", "indirect"]
+    assert all(v.shape == (24, 32, 4) and np.isfinite(v).all() for v in layers.values())
+    np.testing.assert_array_equal(layers["asset"], read_exr_layers(d / "out.exr")[""])
+    a = layers["asset"][..., 3:4]
+    lit = layers["background"][..., :3] + layers["shadow"][..., :3]
+    np.testing.assert_allclose(layers["beauty"][..., :3],
+                               layers["asset"][..., :3] + lit * (1 - a), rtol=1e-5, atol=1e-6)
+    room = layers["background"][..., 3] > 0
+    dark = (layers["shadow"][..., :3].sum(-1) < -0.02 * layers["background"][..., :3].sum(-1))
+    assert (dark & room).sum() > 3
+    assert (layers["indirect"][..., 3] == layers["asset"][..., 3]).all()
+    assert np.abs(layers["indirect"][..., :3][layers["asset"][..., 3] == 0]).max() == 0
+    assert main(_args(d, "--microbuffer", "8", "--layers", str(lay), "--asset-bounces", "0",
+                      *top)) == 0
+    assert np.abs(read_exr_layers(lay)["indirect"][..., :3]).max() == 0

@@ -10,8 +10,9 @@ one-off build (surfels, tree, bounce gathers: once per asset, cloud and material
 edit with one bounce only rescales) and GPU memory. One row per asset for the differential
 (points changed, seconds).
 
-Accuracy rows: for every reference (room, asset, material), per mode, the 4x4-pooled relative
-RMSE and HDR-FLIP of the render with the asset in the tree and without.
+Accuracy rows (app/bench/asset_scenes.py's references): for every reference (room, asset,
+material), per mode, the relative RMSE (per pixel and 4x4-pooled) and HDR-FLIP of the render
+with the asset in the tree (one bounce) and without.
 """
 
 from __future__ import annotations
@@ -105,14 +106,42 @@ def _cost_rows(args, values) -> list[dict]:
 
 
 def _accuracy_rows(args, values) -> list[dict]:
-    try:
-        from app.bench import occlusion
-    except ImportError:
-        return []
-    return occlusion.accuracy_records(microbuffer=values["pbgi.microbuffer"],
-                                      surfels=values["pbgi.asset_surfels"],
-                                      modes=[m.strip() for m in args.modes.split(",")
-                                             if m.strip()])
+    """Per committed reference and mode: the errors with the asset in the tree and without."""
+    from app.bench import asset_scenes as A
+    from app.bench.glossy import evaluate
+    from app.pbgi.renderer import Relighter, RenderParams
+    index = A.load_index()["references"]
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    m, surfels = values["pbgi.microbuffer"], values["pbgi.asset_surfels"]
+    rows = []
+    for room in A.ROOMS:
+        for asset in A.ASSETS:
+            names = [(k, A.reference_name(room, asset, k)) for k in A.KINDS]
+            names = [(k, n) for k, n in names if n in index]
+            if not names:
+                continue
+            cloud, mesh, cam = A.asset_scene(room, asset)
+            rl = Relighter()
+            rl.set_cloud(cloud)
+            rl.set_asset(mesh)
+            for kind, name in names:
+                ref = A.load_image(name)
+                for mode in modes:
+                    err = {}
+                    for v in ("off", "occlusion+1 bounce"):
+                        p = RenderParams(mode=mode, microbuffer=m, asset_surfels=surfels,
+                                         **VARIANTS[v])
+                        err[v] = evaluate(rl.render(cam, [A.material(kind)], p).image, ref)
+                    rows.append(record("asset accuracy", {"room": room, "asset": asset,
+                                                          "kind": kind, "mode": mode, "M": m},
+                                       {"rmse_4x4_off": err["off"]["rel_rmse_4x4"],
+                                        "rmse_4x4": err["occlusion+1 bounce"]["rel_rmse_4x4"],
+                                        "rmse": err["occlusion+1 bounce"]["rel_rmse"],
+                                        "flip_off": err["off"]["flip"],
+                                        "flip": err["occlusion+1 bounce"]["flip"],
+                                        "ref_noise_4x4": index[name]["noise_rel_rmse_4x4"]}))
+            rl.release()
+    return rows
 
 
 def run(args) -> list[dict]:

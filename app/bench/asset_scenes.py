@@ -21,12 +21,10 @@ catcher -> asset -> room, the asset's bounce onto the floor.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from app.errors import ScanlightError
 
 ROOMS = {"apartment": "../shared/data/apartment.exr",     # tuning room
          "city": "../shared/data/city.exr"}               # held out
@@ -128,13 +126,10 @@ def reference_name(room: str, asset: str, kind: str) -> str:
 
 
 def load_index(directory=REFERENCES) -> dict:
-    path = Path(directory) / INDEX
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ScanlightError(path, "no reference index: run tests/pbgi/make_asset_references.py")
+    from app.bench.mitsuba_scene import read_index
+    return read_index(directory, "tests/pbgi/make_asset_references.py")
 
 
 def load_image(name: str, directory=REFERENCES) -> np.ndarray:
-    from app.io.exr import read_exr
-    return np.asarray(read_exr(Path(directory) / name).rgb, dtype=np.float32)
+    from app.bench.mitsuba_scene import read_reference
+    return read_reference(Path(directory) / name)

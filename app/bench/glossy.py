@@ -20,7 +20,6 @@ docs/glossy_sweep.png).
 
 from __future__ import annotations
 
-import json
 import logging
 from pathlib import Path
 
@@ -28,7 +27,7 @@ import numpy as np
 
 from app.bench.records import record
 from app.commands.options import add_param_options, param_values
-from app.errors import ScanlightError, UsageError
+from app.errors import UsageError
 
 log = logging.getLogger(__name__)
 
@@ -77,17 +76,13 @@ def reference_name(room: str, kind: str, roughness: float) -> str:
 
 
 def load_index(directory=REFERENCES) -> dict:
-    path = Path(directory) / INDEX
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ScanlightError(path, "no reference index: run tests/pbgi/make_references.py")
+    from app.bench.mitsuba_scene import read_index
+    return read_index(directory, "tests/pbgi/make_references.py")
 
 
 def load_reference(room: str, kind: str, roughness: float, directory=REFERENCES) -> np.ndarray:
-    from app.io.exr import read_exr
-    return np.asarray(read_exr(Path(directory) / reference_name(room, kind, roughness)).rgb,
-                      dtype=np.float32)
+    from app.bench.mitsuba_scene import read_reference
+    return read_reference(Path(directory) / reference_name(room, kind, roughness))
 
 
 def evaluate(image: np.ndarray, reference: np.ndarray) -> dict:

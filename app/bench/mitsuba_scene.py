@@ -193,3 +193,23 @@ def render_reference(scene, spp: int, seed: int = 0) -> Reference:
         halves.append(np.array(img, dtype=np.float32)[..., :3])
     seconds = time.perf_counter() - t0
     return Reference(0.5 * (halves[0] + halves[1]), tuple(halves), spp, seconds)
+
+
+def read_index(directory, maker: str) -> dict:
+    """A references folder's index (references.json); missing: one line naming ``maker``, the
+    script that renders them."""
+    import json
+    from pathlib import Path
+
+    from app.errors import ScanlightError
+    path = Path(directory) / "references.json"
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ScanlightError(path, f"no reference index: run {maker}") from None
+
+
+def read_reference(path) -> np.ndarray:
+    """A committed reference image as float32 (h, w, 3) linear radiance."""
+    from app.io.exr import read_exr
+    return np.asarray(read_exr(path).rgb, dtype=np.float32)

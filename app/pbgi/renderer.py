@@ -13,6 +13,11 @@ the batching and the gather and differ only in their cut finder; the environment
 gather lit by a cube map. The Relighter holds what they share: the BSH and its node textures,
 the G-buffer, the micro-buffers (and which cut they hold), the gather, the cube map.
 
+The tree the modes walk is the room's joined with the asset's surfels (``pbgi.asset_occlusion``,
+app/pbgi/asset_scene.py: the asset occludes and lights itself), built once per asset placement,
+cloud and materials outside the frame's time; ``differential`` gives the asset's shadow and
+bounce on the scan for ``background``.
+
 Material edits change only the material table (and the G-buffer's factors): when the previous
 render's micro-buffers are still valid (same cloud, asset, camera, tile, size, mode and normal
 maps, all receivers in one batch), only the G-buffer and the gather run again.

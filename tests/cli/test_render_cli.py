@@ -127,6 +127,8 @@ def _scanlight(*args):
     (["--microbuffer", "40"], 2, "--microbuffer"),
     (["--mode", "nope"], 2, "invalid choice"),
     (["--size", "12by4"], 2, "--size"),
+    (["--layers", "layers.png"], 2, "--layers"),
+    (["--asset-surfels", "10"], 2, "--asset-surfels"),
     (["--out-of-range"], 2, "unrecognized"),
 ])
 def test_bad_arguments_exit_2_with_one_line(inputs, extra, code, needle):

@@ -28,8 +28,9 @@ re-gathers; ``frame()`` finds it by comparing cameras, not through the change se
 The asset in the room (app/pbgi/asset_scene.py): while the user drags (``interacting``) and the
 asset's surfel tree or bounce would have to be rebuilt, the previews render without them rather
 than wait for a rebuild per frame; the first render after the drag builds them. Its shadow and
-bounce on the scan (``pbgi.differential``) are gathered once the picture is refined, a few
-hundred points per frame (``Relighter.differential_steps``), and then shown on the splats as a
+bounce on the scan (``pbgi.differential``) are gathered once the picture is refined, in steps
+of DIFFERENTIAL_CHUNK points, as many as the frame's budget allows
+(``Relighter.differential_steps``), and then shown on the splats as a
 per-point factor (L + delta) / L of the lighting cloud's radiance, so the LDR, HDR and expanded
 displays all darken by the same ratio. A moved asset drops the old shadow at once.
 """
@@ -144,12 +145,18 @@ class ViewerEngine:
         """Run ``fn``; a failure becomes a message in the window, never a crash."""
         try:
             return fn(*args, **kwargs)
-        except ScanlightError as err:
-            self.error(f"{what}: {err}")
         except Exception as exc:  # a bug: say what failed, keep the viewer alive
+            self.report_failure(what, exc)
+        return None
+
+    def report_failure(self, what: str, exc: Exception) -> None:
+        """One message for a failure: a ScanlightError says its reason, anything else is a
+        bug, logged with its traceback."""
+        if isinstance(exc, ScanlightError):
+            self.error(f"{what}: {exc}")
+        else:
             log.exception("%s failed", what)
             self.error(f"{what} failed: {type(exc).__name__}: {exc}")
-        return None
 
     # -- loading ---------------------------------------------------------------------------------
     def _init_camera(self) -> None:
@@ -478,11 +485,7 @@ class ViewerEngine:
         except Exception as exc:            # a failure is a message; do not retry this key
             self._diff_steps = None
             self._diff_shown_key = key
-            if isinstance(exc, ScanlightError):
-                self.error(f"the asset's shadow on the scan: {exc}")
-            else:
-                log.exception("differential rendering failed")
-                self.error(f"the asset's shadow on the scan failed: {type(exc).__name__}: {exc}")
+            self.report_failure("the asset's shadow on the scan", exc)
         return False
 
     def _show_differential(self, diff, key=None) -> bool:
@@ -516,11 +519,7 @@ class ViewerEngine:
                                         pass_index=pass_index)
         except Exception as exc:
             self.gi_failed = True
-            if isinstance(exc, ScanlightError):
-                self.error(f"relighting: {exc}")
-            else:
-                log.exception("relighting failed")
-                self.error(f"relighting failed: {type(exc).__name__}: {exc}")
+            self.report_failure("relighting", exc)
             x, y, w, h = tile
             return np.zeros((h, w, 4), np.float32)
         img = np.asarray(res.image, np.float32)

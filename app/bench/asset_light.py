@@ -20,6 +20,8 @@ from __future__ import annotations
 import logging
 import time
 
+import numpy as np
+
 from app.bench.records import record
 from app.commands.options import add_param_options, param_values
 from app.errors import UsageError
@@ -42,6 +44,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--points", type=int, default=200_000, help="demo room points")
     parser.add_argument("--no-accuracy", action="store_true",
                         help="skip the rows against the committed references")
+    parser.add_argument("--images", metavar="PNG",
+                        help="also write a before/after sheet: per reference a row of the path "
+                             "tracer, the render without the asset in the tree, and with it "
+                             "(the first mode; the path tracer's room shows around the asset)")
     add_param_options(parser, "bench asset")      # --microbuffer, --asset-surfels
 
 
@@ -105,7 +111,7 @@ def _cost_rows(args, values) -> list[dict]:
     return rows
 
 
-def _accuracy_rows(args, values) -> list[dict]:
+def _accuracy_rows(args, values, sheet=None) -> list[dict]:
     """Per committed reference and mode: the errors with the asset in the tree and without."""
     from app.bench import asset_scenes as A
     from app.bench.glossy import evaluate
@@ -127,11 +133,15 @@ def _accuracy_rows(args, values) -> list[dict]:
             for kind, name in names:
                 ref = A.load_image(name)
                 for mode in modes:
-                    err = {}
+                    err, shown = {}, [ref]
                     for v in ("off", "occlusion+1 bounce"):
                         p = RenderParams(mode=mode, microbuffer=m, asset_surfels=surfels,
                                          **VARIANTS[v])
-                        err[v] = evaluate(rl.render(cam, [A.material(kind)], p).image, ref)
+                        image = rl.render(cam, [A.material(kind)], p).image
+                        err[v] = evaluate(image, ref)
+                        shown.append(image)
+                    if sheet is not None and mode == modes[0]:
+                        sheet.append(shown)
                     rows.append(record("asset accuracy", {"room": room, "asset": asset,
                                                           "kind": kind, "mode": mode, "M": m},
                                        {"rmse_4x4_off": err["off"]["rel_rmse_4x4"],
@@ -150,8 +160,25 @@ def run(args) -> list[dict]:
         raise UsageError(None, f"--size must be in 8 .. 1024, got {args.size}")
     rows = _cost_rows(args, values)
     if not args.no_accuracy:
-        rows += _accuracy_rows(args, values)
+        sheet = [] if args.images else None
+        rows += _accuracy_rows(args, values, sheet)
+        if sheet:
+            write_sheet(args.images, sheet)
     return rows
+
+
+def write_sheet(path, rows) -> None:
+    """Rows of (reference (h, w, 3), off (h, w, 4), on (h, w, 4)), tone mapped side by side."""
+    from app.io.images import write_png
+    from app.render.tonemap import tonemap_to_srgb8
+
+    def rgba(img):
+        if img.shape[-1] == 4:
+            return img
+        return np.concatenate([img, np.ones(img.shape[:2] + (1,), img.dtype)], axis=-1)
+    lines = [np.concatenate([tonemap_to_srgb8(rgba(i), 0.0) for i in row], axis=1)
+             for row in rows]
+    write_png(path, np.concatenate(lines, axis=0))
 
 
 __all__ = ["add_arguments", "run", "VARIANTS"]

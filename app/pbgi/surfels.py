@@ -40,7 +40,7 @@ class Surfels:
     positions: np.ndarray       # (n, 3) float64 world
     normals: np.ndarray         # (n, 3) float32 unit, the mesh's interpolated shading normal
     face: np.ndarray            # (n,) int64 triangle each surfel lies on
-    albedo: np.ndarray          # (n, 3) float32 base colour (factor x texture) in [0, 1]
+    texture: np.ndarray         # (n, 3) float32 the base colour texture at the surfel (1: none)
     area: float                 # surface area each surfel stands for (total / n)
 
     def __len__(self) -> int:
@@ -88,20 +88,16 @@ def sample_surfels(mesh, count: int, seed: int = 0) -> Surfels:
     geo = np.cross(e1[face], e2[face])
     geo /= np.maximum(np.linalg.norm(geo, axis=1, keepdims=True), 1e-30)
     nrm = np.where(length > 1e-12, nrm / np.maximum(length, 1e-30), geo)
-    albedo = np.zeros((count, 3), np.float32)
+    texture = np.ones((count, 3), np.float32)
     mat = mesh.material_ids[face].astype(np.int64)
     uv = None
     if mesh.uvs is not None:
         uv = np.einsum("nk,nkc->nc", bc, mesh.uvs[tri[face]].astype(np.float64))
     for k, m in enumerate(mesh.materials):
         sel = mat == k
-        if not sel.any():
-            continue
-        c = np.broadcast_to(np.asarray(m.base_color, np.float32)[:3], (int(sel.sum()), 3))
-        if m.base_color_texture is not None and uv is not None:
-            c = c * _sample_texture(m.base_color_texture, uv[sel])[:, :3]
-        albedo[sel] = np.clip(c, 0.0, 1.0)
-    return Surfels(pos, nrm.astype(np.float32), face, albedo, total / count)
+        if sel.any() and m.base_color_texture is not None and uv is not None:
+            texture[sel] = _sample_texture(m.base_color_texture, uv[sel])[:, :3]
+    return Surfels(pos, nrm.astype(np.float32), face, texture, total / count)
 
 
 def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
@@ -114,11 +110,7 @@ def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
     out = np.zeros((len(surfels), 3), np.float32)
     for k, m in enumerate(materials[:len(mesh.materials)]):
         sel = mat == k
-        if not sel.any():
-            continue
-        own = mesh.materials[k]
-        base = np.asarray(own.base_color, np.float32)[:3]
-        tex = np.where(base > 0, surfels.albedo[sel] / np.maximum(base, 1e-6), 1.0) \
-            if own.base_color_texture is not None else 1.0
-        out[sel] = np.clip(np.asarray(m.base_color, np.float32)[:3] * tex, 0.0, 1.0)
+        if sel.any():
+            out[sel] = np.clip(np.asarray(m.base_color, np.float32)[:3] * surfels.texture[sel],
+                               0.0, 1.0)
     return out

@@ -174,3 +174,24 @@ def test_the_switches_and_the_stats(shell):
     fresh = r.render(FURNACE_CAM, red, p)
     assert np.array_equal(edit.image, fresh.image)
     r.release()
+
+
+def test_surfel_albedo_follows_the_base_colour_texture():
+    """A quad whose base colour texture is red on the left half and green on the right: the
+    surfels' bounce albedo is the render's base colour times the texel under each surfel
+    (the material override keeps the mesh's texture, as the G-buffer does)."""
+    from app.io.mesh import build_mesh
+    from app.pbgi.surfels import surfel_albedo
+    tex = np.zeros((1, 2, 3), np.float32)
+    tex[0, 0] = (1.0, 0.0, 0.0)
+    tex[0, 1] = (0.0, 1.0, 0.0)
+    own = Material(base_color=(1.0, 1.0, 1.0), base_color_texture=tex)
+    quad = build_mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float),
+                      np.array([[0, 1, 2], [0, 2, 3]]),
+                      uvs=np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32),
+                      materials=[own])
+    s = sample_surfels(quad, 512)
+    left = s.positions[:, 0] < 0.5
+    got = surfel_albedo(s, quad, [Material(base_color=(0.5, 0.5, 0.5))])
+    assert np.allclose(got[left], (0.5, 0.0, 0.0)) and np.allclose(got[~left], (0.0, 0.5, 0.0))
+    assert np.allclose(surfel_albedo(s, quad, quad.materials)[left], (1.0, 0.0, 0.0))

@@ -71,24 +71,34 @@ def _expansion_path(request) -> Path:
 
 def load_demo_expansion(request):
     """The cached app.hdr.result.Expansion of the demo ``request`` (an ExpandRequest of the
-    demo's LDR cloud and photo), or None when there is none (or it is unreadable)."""
+    demo's LDR cloud and photo), or None when there is none (or it is unreadable). The HDR
+    cloud carries the labels and scores as its provenance attributes, as the pipeline's does.
+    A file without scores (written before they were stored) is a miss: the expansion reruns
+    rather than show a provenance without its scores."""
     import json
 
-    from app.hdr.result import Expansion
+    from app.hdr.result import PROVENANCE_ATTR, SCORE_ATTR, Expansion
     path = _expansion_path(request)
     if not path.is_file():
         return None
     try:
         with np.load(path) as z:
-            colors, labels, report = z["colors"], z["labels"], json.loads(str(z["report"]))
+            if "scores" not in z.files:
+                log.info("%s: demo expansion cache without scores; recomputing", path)
+                return None
+            colors, labels, scores = z["colors"], z["labels"], z["scores"]
+            report = json.loads(str(z["report"]))
     except Exception as exc:  # truncated or stale: recompute
         log.warning("%s: unreadable demo expansion cache (%s); recomputing", path, exc)
         return None
     ldr = request.cloud
-    if colors.shape != ldr.colors.shape:
+    if (colors.shape != ldr.colors.shape or labels.shape != (len(ldr),)
+            or scores.shape != (len(ldr),)):
         return None
-    hdr = PointCloud(ldr.positions, ldr.normals, colors, hdr=True, source="demo:hdr-expanded")
-    return Expansion(hdr, report, labels, [])
+    labels, scores = labels.astype(np.uint8), scores.astype(np.float32)
+    hdr = PointCloud(ldr.positions, ldr.normals, colors, hdr=True, source="demo:hdr-expanded",
+                     attributes={PROVENANCE_ATTR: labels, SCORE_ATTR: scores})
+    return Expansion(hdr, report, labels, [], scores)
 
 
 def store_demo_expansion(request, result) -> None:
@@ -99,6 +109,10 @@ def store_demo_expansion(request, result) -> None:
     path = _expansion_path(request)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
+    n = len(result.cloud)
+    scores = (np.full(n, np.nan, np.float32) if result.scores is None
+              else np.asarray(result.scores, np.float32))
     np.savez(tmp, colors=np.asarray(result.cloud.colors, np.float32),
-             labels=np.asarray(result.labels), report=json.dumps(jsonable(result.report)))
+             labels=np.asarray(result.labels), scores=scores,
+             report=json.dumps(jsonable(result.report)))
     tmp.replace(path)

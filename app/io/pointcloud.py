@@ -17,6 +17,13 @@ What the loader repairs is counted in ``cloud.report`` and logged as a warning:
 ``replaced_bad_normals`` (zero-length or non-finite normals, re-estimated), ``normals`` ("file" or
 "estimated"), and ``warnings`` (the human lines).
 
+Per-point attributes (``PointCloud.attributes``) are extra PLY vertex properties of the same
+names: save_cloud writes every 1-D uint8 (uchar), int32 (int) and float (float) attribute, and the
+PLY reader reads back the HDR expansion's provenance, ``provenance`` (uchar label codes of
+app.hdr.result.PROVENANCE) and ``provenance_score`` (float, NaN where a label has no score); other
+unknown properties are ignored. Provenance that is not valid (a code outside PROVENANCE, a float
+label, an integer score) is dropped with a warning: the cloud itself is still good.
+
 Estimated normals are oriented towards the centre of the cloud's bounding box: a room scan is seen
 from inside, so its walls, floor and ceiling face inwards. Surfaces that face away from the centre
 (the far side of a box standing in the room) get flipped normals; rescanning with normals avoids it.
@@ -36,6 +43,7 @@ import numpy as np
 from app.cloud import PointCloud
 from app.color import srgb_to_linear, to_uint8_srgb
 from app.errors import ScanlightError
+from app.hdr.result import LABEL_NAMES, PROVENANCE, PROVENANCE_ATTR, SCORE_ATTR
 from app.io.clean import clean_rgb, describe_counts
 from app.io.files import atomic_output, require_file
 from app.io.limits import MAX_PCD_HEADER, MAX_PLY_HEADER
@@ -59,6 +67,8 @@ _PLY_TYPES = {
 _NORMAL_NAMES = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
 _COLOR_NAMES = (("red", "green", "blue"), ("r", "g", "b"),
                 ("diffuse_red", "diffuse_green", "diffuse_blue"))
+# what save_cloud writes a point attribute as: numpy dtype -> (PLY type, stored dtype)
+_ATTR_UCHAR, _ATTR_INT, _ATTR_FLOAT = ("uchar", "u1"), ("int", "<i4"), ("float", "<f4")
 
 
 # ---------------------------------------------------------------------------------------- PLY
@@ -189,7 +199,39 @@ def _read_ply(p: Path) -> dict:
             else:
                 out["colors"] = srgb_to_linear(np.clip(rgb / np.iinfo(t).max, 0.0, 1.0))
             break
+    out["attributes"] = _ply_provenance(data, types, out["warnings"])
     return out
+
+
+def _ply_provenance(data: dict, types: dict, warns: list) -> dict:
+    """PROVENANCE_ATTR (and SCORE_ATTR) from the vertex properties, or {} with a warning in
+    ``warns`` when they are not valid: provenance is a description, not part of the scan."""
+    def kind(name):
+        return np.dtype(_PLY_TYPES[types[name]]).kind
+
+    if PROVENANCE_ATTR not in data:
+        if SCORE_ATTR in data:
+            warns.append(f"property {SCORE_ATTR!r} without {PROVENANCE_ATTR!r}: ignored")
+        return {}
+    labels = data[PROVENANCE_ATTR]
+    if kind(PROVENANCE_ATTR) not in "iu":
+        warns.append(f"property {PROVENANCE_ATTR!r} is {types[PROVENANCE_ATTR]}, not an integer "
+                     "label: provenance ignored")
+        return {}
+    bad = ~np.isin(labels, list(PROVENANCE))
+    if bad.any():
+        seen = ", ".join(f"{v:g}" for v in np.unique(labels[bad])[:5])
+        warns.append(f"{int(bad.sum())} points have provenance codes outside "
+                     f"{min(PROVENANCE)}-{max(PROVENANCE)} ({seen}): provenance ignored")
+        return {}
+    attrs = {PROVENANCE_ATTR: labels.astype(np.uint8)}
+    if SCORE_ATTR in data:
+        if kind(SCORE_ATTR) == "f":
+            attrs[SCORE_ATTR] = data[SCORE_ATTR].astype(np.float32)
+        else:
+            warns.append(f"property {SCORE_ATTR!r} is {types[SCORE_ATTR]}, not float: "
+                         "provenance scores ignored")
+    return attrs
 
 
 # ---------------------------------------------------------------------------------------- PCD
@@ -388,6 +430,7 @@ def load_cloud(path) -> PointCloud:
     ext = p.suffix.lower()
     raw = _read_ply(p) if ext == ".ply" else _read_pcd(p) if ext == ".pcd" else _read_text(p)
     pos, normals, colors = raw["positions"], raw["normals"], raw["colors"]
+    attributes = raw.get("attributes", {})
     report: dict = {"points_in_file": int(len(pos)), "color_type": raw["color_type"]}
     for w in raw.get("warnings", []):
         _warn(report, p, w)
@@ -403,6 +446,7 @@ def load_cloud(path) -> PointCloud:
         pos = pos[finite]
         normals = None if normals is None else normals[finite]
         colors = None if colors is None else colors[finite]
+        attributes = {k: v[finite] for k, v in attributes.items()}
 
     if colors is None:
         colors = np.full((len(pos), 3), DEFAULT_COLOR, dtype=np.float32)
@@ -430,7 +474,8 @@ def load_cloud(path) -> PointCloud:
             normals[bad] = estimate_normals(pos)[bad]
             report["replaced_bad_normals"] = int(bad.sum())
             _warn(report, p, f"re-estimated {int(bad.sum())} zero-length or NaN normals")
-    return PointCloud(pos, normals, colors, hdr=hdr, source=str(p), report=report)
+    return PointCloud(pos, normals, colors, hdr=hdr, source=str(p), report=report,
+                      attributes=attributes)
 
 
 # ---------------------------------------------------------------------------------------- save
@@ -442,7 +487,9 @@ def save_cloud(cloud: PointCloud, path, color_type: str | None = None) -> None:
     offset scans keep sub-millimetre precision; nx, ny, nz float32. Colours: ``color_type`` None
     picks float32 linear for HDR clouds and uchar sRGB for LDR ones, so that load_cloud gives back
     the same ``hdr`` flag (8-bit values survive uchar -> linear -> uchar exactly); pass "float32"
-    to store an LDR cloud's linear colours as floats.
+    to store an LDR cloud's linear colours as floats. ``cloud.attributes`` follow as extra
+    properties of their names: uint8 -> uchar, int32 -> int, float -> float (NaN allowed); any
+    other dtype, shape or name is a ValueError (see the module docstring).
     """
     p = Path(path)
     if p.suffix.lower() != ".ply":
@@ -459,8 +506,10 @@ def save_cloud(cloud: PointCloud, path, color_type: str | None = None) -> None:
     ptype = ("double", "<f8") if big else ("float", "<f4")
     ctype = ("float", "<f4") if color_type == "float32" else ("uchar", "u1")
     cnames = ("red", "green", "blue")
+    attrs = _attribute_types(cloud)
     dtype = np.dtype([(k, ptype[1]) for k in "xyz"] + [(k, "<f4") for k in ("nx", "ny", "nz")]
-                     + [(k, ctype[1]) for k in cnames])
+                     + [(k, ctype[1]) for k in cnames]
+                     + [(k, t[1]) for k, t in attrs.items()])
     rec = np.empty(len(pos), dtype=dtype)
     for i, k in enumerate("xyz"):
         rec[k] = pos[:, i]
@@ -469,15 +518,46 @@ def save_cloud(cloud: PointCloud, path, color_type: str | None = None) -> None:
     cols = cloud.colors if color_type == "float32" else to_uint8_srgb(cloud.colors)
     for i, k in enumerate(cnames):
         rec[k] = cols[:, i]
+    for k in attrs:
+        rec[k] = cloud.attributes[k]
     header = ["ply", "format binary_little_endian 1.0",
               "comment scanlight: " + ("linear HDR float colours" if color_type == "float32"
-                                       else "sRGB-encoded 8-bit colours"),
-              f"element vertex {len(pos)}"]
+                                       else "sRGB-encoded 8-bit colours")]
+    if PROVENANCE_ATTR in attrs:
+        header.append(f"comment {PROVENANCE_ATTR} codes: "
+                      + ", ".join(f"{k} {v}" for k, v in sorted(LABEL_NAMES.items())))
+    header.append(f"element vertex {len(pos)}")
     header += [f"property {ptype[0]} {k}" for k in "xyz"]
     header += [f"property float {k}" for k in ("nx", "ny", "nz")]
     header += [f"property {ctype[0]} {k}" for k in cnames]
+    header += [f"property {t[0]} {k}" for k, t in attrs.items()]
     header.append("end_header")
     with atomic_output(p) as tmp:
         with open(tmp, "wb") as f:
             f.write(("\n".join(header) + "\n").encode("ascii"))
             f.write(rec.tobytes())
+
+
+def _attribute_types(cloud: PointCloud) -> dict:
+    """name -> (PLY type, stored dtype) of each of ``cloud.attributes``; the names the reader
+    takes for positions, normals or colours are refused."""
+    taken = ("x", "y", "z") + sum(_NORMAL_NAMES + _COLOR_NAMES, ())
+    out = {}
+    for name, values in cloud.attributes.items():
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name) or name in taken:
+            raise ValueError(f"save_cloud: point attribute name {name!r} cannot be a PLY property "
+                             f"(letters, digits and _, not one of {', '.join(taken)})")
+        dt = values.dtype
+        if values.ndim != 1:
+            raise ValueError(f"save_cloud: point attribute {name!r} has shape {values.shape}; "
+                             "only one value per point is written")
+        if dt == np.uint8:
+            out[name] = _ATTR_UCHAR
+        elif dt == np.int32:
+            out[name] = _ATTR_INT
+        elif dt.kind == "f":
+            out[name] = _ATTR_FLOAT
+        else:
+            raise ValueError(f"save_cloud: point attribute {name!r} is {dt}; PLY properties are "
+                             "written for uint8, int32 and float arrays")
+    return out

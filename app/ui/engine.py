@@ -446,7 +446,7 @@ class ViewerEngine:
         # a failed relighting shows the placeholder hatch (the reason is in the messages), so
         # the asset never silently vanishes from the picture
         self.view.composite(cam, s["view.exposure"], s["view.tonemap"],
-                            raw_room=s["view.cloud"] == "difference" and self.cloud.hdr is not None,
+                            raw_room=self.cloud.false_colour(s["view.cloud"]),
                             unavailable=not self.renderer_available or self.gi_failed,
                             asset_rect=rect, label_rect=label, room=room)
         self._composite_dirty = self._asset_dirty = False
@@ -455,7 +455,7 @@ class ViewerEngine:
     def _differential_params(self):
         s = self.session.settings
         if (not self.renderer_available or self.mesh is None or self.cloud is None
-                or not s["pbgi.differential"] or s["view.cloud"] == "difference"):
+                or not s["pbgi.differential"] or self.cloud.false_colour(s["view.cloud"])):
             return None
         return RenderParams.from_settings(s)
 

@@ -45,7 +45,15 @@ class Cloud:
             return self.hdr.colors
         if which == "difference" and self.hdr is not None:
             return difference_colors(self.ldr.colors, self.hdr.colors)
+        if which == "provenance":   # of the cloud that lights: grey when it has none
+            from app.ui.provenance import provenance_colors
+            return provenance_colors(self.lighting(which))
         return self.ldr.colors
+
+    def false_colour(self, which: str) -> bool:
+        """True when ``colors(which)`` is a false-colour map, shown raw (no exposure or tone
+        mapping) and not darkened by the asset's shadow."""
+        return which == "provenance" or (which == "difference" and self.hdr is not None)
 
     def lighting(self, which: str) -> PointCloud:
         """The cloud the asset is lit by: the HDR one once it exists, unless 'ldr' is shown."""

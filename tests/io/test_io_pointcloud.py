@@ -143,6 +143,108 @@ def test_normals_estimated_on_offset_plane(tmp_path):
     assert np.all(c.normals[:-1, 2] > 0.99)  # facing up, towards the bounding-box centre
 
 
+# ------------------------------------------------------- per-point attributes: provenance
+
+def _provenance(n):
+    """Every label, in order, and scores with NaN where a label has none."""
+    from app.hdr.result import PROVENANCE
+    labels = np.resize(np.array(sorted(PROVENANCE), np.uint8), n)
+    scores = np.where(labels % 2 == 0, np.nan, RNG.uniform(0, 1, n)).astype(np.float32)
+    return labels, scores
+
+
+def test_provenance_round_trips_as_ply_properties(tmp_path):
+    from app.hdr.result import PROVENANCE_ATTR, SCORE_ATTR
+    pos, nrm = sphere_points(200)
+    labels, scores = _provenance(200)
+    extra = np.arange(200, dtype=np.int32)          # written (int), not read back: unknown name
+    cloud = PointCloud(pos, nrm, RNG.uniform(0, 5, (200, 3)), True,
+                       attributes={PROVENANCE_ATTR: labels, SCORE_ATTR: scores, "index": extra})
+    save_cloud(cloud, tmp_path / "p.ply")
+    header = (tmp_path / "p.ply").read_bytes()[:800]
+    assert b"property uchar provenance\n" in header
+    assert b"property float provenance_score\n" in header and b"property int index\n" in header
+    back = load_cloud(tmp_path / "p.ply")
+    assert set(back.attributes) == {PROVENANCE_ATTR, SCORE_ATTR}
+    assert back.attributes[PROVENANCE_ATTR].dtype == np.uint8
+    assert back.attributes[SCORE_ATTR].dtype == np.float32
+    np.testing.assert_array_equal(back.attributes[PROVENANCE_ATTR], labels)
+    np.testing.assert_array_equal(back.attributes[SCORE_ATTR], scores)     # NaN stays NaN
+    assert not back.report.get("warnings")
+    plain = PointCloud(pos, nrm, np.ones((200, 3)), True)                   # none: none back
+    save_cloud(plain, tmp_path / "plain.ply")
+    assert load_cloud(tmp_path / "plain.ply").attributes == {}
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_big_endian"])
+def test_provenance_read_from_hand_written_ply(tmp_path, fmt):
+    from app.hdr.result import PROVENANCE_ATTR, SCORE_ATTR
+    pos, nrm = sphere_points(30)
+    labels, scores = _provenance(30)
+    cols = xyz_normals(pos, nrm)
+    cols.update({PROVENANCE_ATTR: ("uchar", labels), SCORE_ATTR: ("float", scores)})
+    write_ply(tmp_path / "h.ply", cols, fmt)
+    back = load_cloud(tmp_path / "h.ply")
+    np.testing.assert_array_equal(back.attributes[PROVENANCE_ATTR], labels)
+    np.testing.assert_allclose(back.attributes[SCORE_ATTR], scores, rtol=1e-6)
+
+
+def test_provenance_follows_the_points_kept(tmp_path):
+    """Points dropped for NaN positions take their provenance with them."""
+    from app.hdr.result import PROVENANCE_ATTR, SCORE_ATTR
+    pos, nrm = sphere_points(40)
+    pos[[2, 17]] = np.nan
+    labels, scores = _provenance(40)
+    cols = xyz_normals(pos, nrm)
+    cols.update({PROVENANCE_ATTR: ("uchar", labels), SCORE_ATTR: ("float", scores)})
+    write_ply(tmp_path / "d.ply", cols)
+    back = load_cloud(tmp_path / "d.ply")
+    keep = np.ones(40, bool)
+    keep[[2, 17]] = False
+    assert len(back) == 38
+    np.testing.assert_array_equal(back.attributes[PROVENANCE_ATTR], labels[keep])
+    np.testing.assert_array_equal(back.attributes[SCORE_ATTR], scores[keep])
+
+
+@pytest.mark.parametrize("case, kept, expect", [
+    ("unknown_code", set(), "2 points have provenance codes outside 0-4 (7, 9): provenance ignored"),
+    ("float_labels", set(), "property 'provenance' is float, not an integer label"),
+    ("int_scores", {"provenance"}, "property 'provenance_score' is int, not float"),
+    ("scores_alone", set(), "property 'provenance_score' without 'provenance': ignored"),
+])
+def test_bad_provenance_is_dropped_with_a_warning(tmp_path, caplog, case, kept, expect):
+    """Provenance describes the cloud; a bad one is ignored (one warning line), the cloud loads."""
+    pos, nrm = sphere_points(12)
+    labels, scores = _provenance(12)
+    cols = xyz_normals(pos, nrm)
+    if case == "unknown_code":
+        labels[[3, 5]] = (7, 9)
+    if case != "scores_alone":
+        cols["provenance"] = ("float" if case == "float_labels" else "uchar", labels)
+    cols["provenance_score"] = ("int", np.arange(12)) if case == "int_scores" else ("float", scores)
+    write_ply(tmp_path / f"{case}.ply", cols)
+    with caplog.at_level(logging.WARNING, logger="app.io.pointcloud"):
+        back = load_cloud(tmp_path / f"{case}.ply")
+    assert len(back) == 12 and set(back.attributes) == kept
+    assert [w for w in back.report["warnings"] if expect in w], back.report["warnings"]
+    assert expect in caplog.text
+
+
+def test_cloud_attributes_are_checked_sliced_and_saved_strictly(tmp_path):
+    pos, nrm = sphere_points(5)
+    with pytest.raises(ValueError, match="point attribute 'q' has 4 values but the cloud has 5"):
+        PointCloud(pos, nrm, np.ones((5, 3)), attributes={"q": np.zeros(4)})
+    c = PointCloud(pos, nrm, np.ones((5, 3)), True, None, {}, {"q": np.arange(5.0)})  # positional
+    np.testing.assert_array_equal(c.subset([4, 1]).attributes["q"], [4.0, 1.0])
+    for attrs, msg in [({"q": np.arange(5)}, "is int64"), ({"red": np.zeros(5, np.uint8)}, "name"),
+                       ({"a b": np.zeros(5, np.uint8)}, "name"),
+                       ({"q": np.zeros((5, 2), np.float32)}, "shape")]:
+        with pytest.raises(ValueError, match=msg):
+            save_cloud(PointCloud(pos, nrm, np.ones((5, 3)), True, attributes=attrs),
+                       tmp_path / "x.ply")
+        assert not (tmp_path / "x.ply").exists()
+
+
 # ------------------------------------------------------------------------ repairs, counted
 
 def test_nonfinite_positions_dropped_and_counted(tmp_path, caplog):

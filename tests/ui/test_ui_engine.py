@@ -331,6 +331,75 @@ def test_difference_colours_follow_the_stops():
     np.testing.assert_allclose(c[2:], 1.0, atol=1e-3)                 # >= DIFF_STOPS: white
 
 
+def _provenance_cloud(ldr, seed=3):
+    """A stand-in expansion of ``ldr``: random labels, registered points with q in {0, 0.5, 1,
+    NaN}, PatchMatch points with SSD scores, the others NaN (app/hdr/result.py PROVENANCE)."""
+    from app.cloud import PointCloud
+    from app.hdr.result import PROJECTED, PROVENANCE, PROVENANCE_ATTR, REGISTERED, SCORE_ATTR
+    rng = np.random.default_rng(seed)
+    labels = rng.choice(sorted(PROVENANCE), len(ldr)).astype(np.uint8)
+    scores = np.full(len(ldr), np.nan, np.float32)
+    reg = labels == REGISTERED
+    scores[reg] = rng.choice([0.0, 0.5, 1.0, np.nan], int(reg.sum()))
+    scores[labels == PROJECTED] = rng.uniform(0, 3, int((labels == PROJECTED).sum()))
+    return PointCloud(ldr.positions, ldr.normals, ldr.colors * 3.0, True,
+                      attributes={PROVENANCE_ATTR: labels, SCORE_ATTR: scores})
+
+
+def _palette_colours(labels, scores):
+    """The provenance view's colours computed here from the palette alone: each label's sRGB
+    colour, a registered point's scaled by Q_FLOOR + (1 - Q_FLOOR) q (NaN q: full), linearised."""
+    from app.color import srgb_to_linear
+    from app.hdr.result import REGISTERED
+    from app.ui.provenance import PALETTE, Q_FLOOR
+    srgb = np.zeros((len(labels), 3))
+    for label, rgb in PALETTE.items():
+        srgb[labels == label] = np.array(rgb) / 255.0
+    reg = labels == REGISTERED
+    q = np.where(np.isnan(scores[reg]), 1.0, scores[reg])
+    srgb[reg] *= (Q_FLOOR + (1 - Q_FLOOR) * q)[:, None]
+    return srgb_to_linear(srgb)
+
+
+def test_provenance_view_colours_points_by_label_and_lights_with_hdr(ctx, renders):
+    """The provenance view: each point in its label's palette colour (registered ones dimmed by
+    a low q), shown raw (the splats' linear colours reach the picture unchanged), no asset
+    shadow on the false colours; the asset stays lit by the HDR cloud. A cloud without
+    provenance shows every point in the NO_PROVENANCE grey."""
+    from app.color import srgb_to_linear, to_uint8_srgb
+    from app.hdr.result import PROVENANCE_ATTR, SCORE_ATTR
+    from app.ui.provenance import NO_PROVENANCE
+    from app.ui.viewport import BACKGROUND
+    e = make_engine(ctx)
+    hdr = _provenance_cloud(e.cloud.ldr)
+    e.set_hdr_cloud(hdr)
+    e.session.settings.set("view.cloud", "provenance")
+    e.session.settings.set("view.exposure", 2.0)      # false colours ignore it
+    e.frame()
+    e.finish_refinement()
+    labels, scores = hdr.attributes[PROVENANCE_ATTR], hdr.attributes[SCORE_ATTR]
+    want = _palette_colours(labels, scores)
+    np.testing.assert_allclose(e.cloud.colors("provenance"), want, rtol=1e-6, atol=1e-7)
+    assert e._lit_cloud is hdr and e._diff_shown_key is None
+    img = e.view.read_linear()
+    room = (img[..., 3] == 0) & np.any(np.abs(img[..., :3] - BACKGROUND[:3]) > 1e-6, axis=-1)
+    px = img[room][:, :3]
+    palette = np.unique(want, axis=0)   # 5 labels + registered at q = 0 and 0.5 (NaN: as q = 1)
+    assert len(palette) == 7 and room.sum() > 1000
+    nearest = np.abs(px[:, None, :] - palette[None]).max(axis=-1).min(axis=1)
+    assert nearest.max() < 1e-5                       # every room pixel is a palette colour
+    shown = e.view.read_display()[room].astype(int)   # raw: sRGB-encoded, no exposure
+    assert np.abs(shown - to_uint8_srgb(px)).max() <= 1
+    e.set_hdr_cloud(replace(hdr, attributes={}))      # e.g. an HDR file from before provenance
+    e.session.settings.set("view.cloud", "provenance")
+    e.frame()
+    grey = srgb_to_linear(np.array(NO_PROVENANCE) / 255.0)
+    np.testing.assert_allclose(e.cloud.colors("provenance"),
+                               np.broadcast_to(grey, (len(hdr), 3)), atol=1e-7)
+    img = e.view.read_linear()
+    np.testing.assert_allclose(img[room][:, :3], np.broadcast_to(grey, px.shape), atol=1e-5)
+
+
 def test_frame_loop_keeps_running_during_an_expansion(ctx, renders):
     """Frames while the expansion job runs in its worker thread, against frames without it.
 

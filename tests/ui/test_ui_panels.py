@@ -184,3 +184,91 @@ def test_capture_camera_list_edits(ui):
     _draw(ui, 1)
     assert [c.name for c in s.capture_cameras] == ["capture 1", "extra"]
     np.testing.assert_allclose(s.capture_cameras[1].position, (0, 1, 0))
+
+
+def _record_text(monkeypatch) -> list[tuple[str, str]]:
+    """(function, text) of every imgui.text / text_disabled call while drawing."""
+    seen = []
+    for fn in ("text", "text_disabled"):
+        real = getattr(imgui, fn)
+
+        def record(text, *a, _fn=fn, _real=real):
+            seen.append((_fn, text))
+            return _real(text, *a)
+        monkeypatch.setattr(imgui, fn, record)
+    return seen
+
+
+def test_provenance_legend_counts_the_points_of_each_label(ui, monkeypatch):
+    """The provenance view's legend: per label, in PROVENANCE's order, its name, its number of
+    points and its share of the cloud (counted here from the labels); the "show" row with the
+    new choice still fits the panel."""
+    from app.cloud import PointCloud
+    from app.hdr.result import (POISSON, PROJECTED, PROVENANCE, PROVENANCE_ATTR, REGISTERED,
+                                SCORE_ATTR, UNCHANGED, UNRESOLVED)
+    from app.ui import panels, provenance
+    monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {"HDR expansion"})
+    ldr = ui.engine.cloud.ldr
+    n = len(ldr)
+    counts = {REGISTERED: 1234, PROJECTED: 5678, POISSON: 90, UNRESOLVED: 0}
+    counts[UNCHANGED] = n - sum(counts.values())
+    labels = np.concatenate([np.full(c, k, np.uint8) for k, c in counts.items()])
+    labels = np.random.default_rng(1).permutation(labels)
+    scores = np.where(labels == REGISTERED, 0.75, np.nan).astype(np.float32)
+    ui.engine.cloud.hdr = PointCloud(ldr.positions, ldr.normals, ldr.colors, True,
+                                     attributes={PROVENANCE_ATTR: labels, SCORE_ATTR: scores})
+    ui.session.settings.set("view.cloud", "provenance")
+    edges = []
+    real_radio = imgui.radio_button
+
+    def radio(label, active):
+        pressed = real_radio(label, active)
+        edges.append(imgui.get_item_rect_max().x)
+        return pressed
+    monkeypatch.setattr(imgui, "radio_button", radio)
+    seen = _record_text(monkeypatch)
+    _draw(ui, 2)
+    assert not ui.engine.messages, [m.text for m in ui.engine.messages]
+    texts = [t for _, t in seen]
+    at = texts.index(PROVENANCE[UNCHANGED][0])
+    rows = [texts[at + 3 * i: at + 3 * i + 3] for i in range(len(PROVENANCE))]
+    assert rows == [[name, f"{counts[k]:,}", f"{100 * counts[k] / n:.1f} %"]
+                    for k, (name, _) in PROVENANCE.items()]
+    assert ("text_disabled", PROVENANCE[UNRESOLVED][0]) in seen     # no point: greyed
+    assert provenance.Q_NOTE in texts and provenance.NO_PROVENANCE_LINE not in texts
+    legend = provenance.legend(ui.engine.cloud.hdr)
+    assert [r.srgb for r in legend] == [tuple(c / 255 for c in provenance.PALETTE[k])
+                                        for k in PROVENANCE]
+    assert legend[list(PROVENANCE).index(REGISTERED)].median_score == 0.75
+    style = imgui.get_style()
+    assert max(edges) <= panels.PANEL_WIDTH - style.window_padding.x    # no clipped choice
+    room = panels.PANEL_WIDTH - 2 * style.window_padding.x - style.scrollbar_size
+    for line in (provenance.Q_NOTE, provenance.NO_PROVENANCE_LINE):  # one unclipped line each
+        assert imgui.calc_text_size(line).x <= room, line
+
+
+def test_provenance_legend_says_when_the_cloud_has_none(ui, monkeypatch):
+    """An HDR cloud without the provenance attribute (a file from before it, say): one line
+    says so, the legend has no rows, and the points are grey."""
+    from app.ui import panels, provenance
+    monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {"HDR expansion"})
+    ui.engine.cloud.hdr = ui.engine.cloud.ldr        # no attributes
+    ui.session.settings.set("view.cloud", "provenance")
+    seen = _record_text(monkeypatch)
+    _draw(ui, 2)
+    assert not ui.engine.messages, [m.text for m in ui.engine.messages]
+    assert ("text_disabled", provenance.NO_PROVENANCE_LINE) in seen
+    assert provenance.Q_NOTE not in [t for _, t in seen]
+    grey = ui.engine.cloud.colors("provenance")
+    assert np.all(grey == grey[0]) and np.ptp(grey[0]) == 0   # one neutral grey
+
+
+def test_report_lists_the_registered_points(ui, monkeypatch):
+    from app.ui import panels
+    monkeypatch.setattr(panels, "OPEN_BY_DEFAULT", {"HDR expansion"})
+    ui.hdr_report["counts"]["projected_from_registered_photo"] = 4321
+    wrapped = []
+    real = imgui.text_wrapped
+    monkeypatch.setattr(imgui, "text_wrapped", lambda t, *a: (wrapped.append(t), real(t, *a))[1])
+    _draw(ui, 1)
+    assert any("4,321 from the registered photo" in t for t in wrapped), wrapped

@@ -1,5 +1,6 @@
 """HDR expansion: the photo and the exposure found, method and thresholds, Run / Cancel with
-progress while the job runs in the background, then LDR / HDR / difference."""
+progress while the job runs in the background, then LDR / HDR / difference / provenance, with
+the provenance legend while that view is shown (app/ui/provenance.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 from imgui_bundle import imgui
 
 from app.params import BY_KEY
-from app.ui import widgets
+from app.ui import provenance, widgets
 from app.ui.widgets import tooltip
 
 THUMB = 256
@@ -71,6 +72,16 @@ def _run_controls(ui) -> None:
         imgui.progress_bar(0.0, (-1, 0), ui.hdr_status or "idle")
 
 
+SHOW_TIPS = {
+    "ldr": "The scan's clipped LDR colours; the asset is lit by them too.",
+    "hdr": "The HDR-expanded colours, which light the asset.",
+    "difference": "log2(Y_hdr / Y_ldr) per point, black = unchanged, white = 6 stops; the asset "
+                  "stays lit by the HDR cloud.",
+    "provenance": "Where each point's HDR colour came from, in false colour (legend below); the "
+                  "asset stays lit by the HDR cloud.",
+}
+
+
 def _show_choice(ui) -> None:
     s, e = ui.session, ui.engine
     imgui.separator_text("show")
@@ -80,12 +91,49 @@ def _show_choice(ui) -> None:
     for i, name in enumerate(BY_KEY["view.cloud"].choices):
         if i:
             imgui.same_line()
-        if imgui.radio_button(name.upper() if name != "difference" else "difference",
-                              cur == name):
+        if imgui.radio_button(name.upper() if name in ("ldr", "hdr") else name, cur == name):
             s.settings.set("view.cloud", name)
+        tooltip(SHOW_TIPS.get(name, "") if has_hdr else "Available once the expansion has run.")
     imgui.end_disabled()
-    tooltip("difference: log2(Y_hdr / Y_ldr) per point, black = unchanged, white = 6 stops"
-            if has_hdr else "Available once the expansion has run.")
+    if cur == "provenance":
+        _legend(ui)
+
+
+def _legend(ui) -> None:
+    """Swatch, name, points and share of each provenance label of the cloud that lights the
+    asset (the one shown), or one line saying it has none (its points are grey)."""
+    e = ui.engine
+    rows = provenance.legend(e.cloud.lighting("provenance") if e.cloud is not None else None)
+    if rows is None:
+        imgui.text_disabled(provenance.NO_PROVENANCE_LINE)
+        tooltip("Only an expansion by this version records it (saved in the HDR cloud's PLY as "
+                "the 'provenance' property): run the expansion again to see it.")
+        return
+    flags = imgui.TableFlags_.sizing_fixed_fit | imgui.TableFlags_.no_host_extend_x
+    if imgui.begin_table("provenance legend", 4, flags):
+        side = imgui.get_text_line_height()
+        for r in rows:
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.color_button(f"##swatch{r.label}", (*r.srgb, 1.0),
+                               imgui.ColorEditFlags_.no_tooltip, (side, side))
+            imgui.table_next_column()
+            (imgui.text if r.count else imgui.text_disabled)(r.name)
+            score = "" if np.isnan(r.median_score) else f"\nmedian score: {r.median_score:.3g}"
+            tooltip(f"score: {r.meaning}{score}")
+            imgui.table_next_column()
+            _right_aligned(f"{r.count:,}")
+            imgui.table_next_column()
+            _right_aligned(f"{100 * r.share:.1f} %")
+        imgui.end_table()
+    imgui.text_disabled(provenance.Q_NOTE)
+
+
+def _right_aligned(text: str) -> None:
+    pad = imgui.get_content_region_avail().x - imgui.calc_text_size(text).x
+    if pad > 0:
+        imgui.set_cursor_pos_x(imgui.get_cursor_pos_x() + pad)
+    imgui.text(text)
 
 
 def _report(ui) -> None:
@@ -98,6 +146,7 @@ def _report(ui) -> None:
         c = rep.get("counts", {})
         imgui.text_wrapped(
             f"{c.get('overexposed', 0):,} overexposed points: "
+            f"{c.get('projected_from_registered_photo', 0):,} from the registered photo, "
             f"{c.get('expanded_by_projection', 0):,} projected, "
             f"{c.get('filled_by_poisson', 0):,} by Poisson, "
             f"{c.get('unresolved', 0):,} unresolved")

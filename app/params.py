@@ -173,8 +173,10 @@ PARAMS: tuple[Param, ...] = (
        "recognisable and rolls off highlights; 'clamp' shows linear values clipped at 1.",
        ("pbr-neutral", "clamp"), redo="display"),
     _c("view.cloud", "ldr", "Which room colours to show: the LDR scan, the HDR-expanded cloud, "
-       "or the difference map log2(Y_hdr / Y_ldr) in false colour (paper Fig. 1).",
-       ("ldr", "hdr", "difference"), label="cloud colours", redo="gi"),
+       "or in false colour the difference map log2(Y_hdr / Y_ldr) (paper Fig. 1) or each "
+       "point's provenance (where its HDR colour came from). All but 'ldr' light the asset with "
+       "the HDR cloud.", ("ldr", "hdr", "difference", "provenance"), label="cloud colours",
+       redo="gi"),
     _f("view.fov_y", 50.0, "Vertical field of view of the viewport camera.", 10.0, 120.0, "deg",
        label="field of view", redo="gi"),
     _f("view.splat_scale", 2.0, "Radius multiplier of the room's point splats (1 = twice the "
@@ -241,6 +243,14 @@ PARAMS: tuple[Param, ...] = (
     _c("hdr.method", "pmatch-rgb", "Expansion strategy: generalised PatchMatch transferring "
        "colour or luminance from the photo, or inverse tone mapping (Landis / Banterle; '-pc' = "
        "per point).", HDR_METHODS, redo="job"),
+    _c("hdr.registration", "auto", "Find the photo's camera in the scan (photometric alignment, "
+       "no calibration) and project the photo's HDR values through it; 'off', or when no camera "
+       "makes the photo agree with the scan: the method's matching (PatchMatch or ITMO).",
+       ("auto", "off"), redo="job"),
+    _f("hdr.consistency", 0.35, "Never worse than the scan: an expanded value is rejected (left "
+       "to Poisson) when a channel the scan did not clip differs from it by more than this "
+       "fraction, or a clipped one falls below its clip level by more than half of it.",
+       0.0, 10.0, "", soft=(0.05, 2.0), ui=False, redo="job"),
     _i("hdr.face_size", 512, "Cube-map face resolution of each capture.", 16, 8192, "px",
        soft=(64, 2048), redo="job"),
     _f("hdr.threshold_ldr", 0.9, "t_l: only points whose LDR luminance exceeds this are "

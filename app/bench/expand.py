@@ -7,6 +7,10 @@ Set-up (generating the scene) is not timed. Records: case.points, case.method,
 metrics.seconds_total and one metrics.seconds_<stage> per stage, plus the point RMS on the
 overexposed points against the ground truth (and the LDR cloud's, for scale).
 
+``--rooms`` (comma-separated, or ``all``) runs instead the real-room protocol of
+app/bench/expand_rooms.py: per room and photo kind (``--photos``), the path taken, the points
+expanded from the photo, the error ratios against the LDR scan and the exposure error.
+
 ``--poisson-stress`` adds the Poisson solver comparison on a large Omega: every overexposed
 point of the cloud is treated as unknown (as if no rendering had seen it; boundary values 3x the
 LDR colour), for both solvers.
@@ -24,9 +28,16 @@ BENCH = "expand"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--points", type=int, default=1_000_000, help="cloud size (1000000)")
+    parser.add_argument("--points", type=int, default=None,
+                        help="cloud size (default 1000000; with --rooms 50000)")
     parser.add_argument("--methods", default="pmatch-rgb",
                         help="comma-separated methods, or 'all' (default pmatch-rgb)")
+    parser.add_argument("--rooms", default=None,
+                        help="real-room protocol: comma-separated rooms (demo, apartment, city, "
+                             "studio, warehouse) or 'all'")
+    parser.add_argument("--photos", default="all",
+                        help="with --rooms: comma-separated photo kinds (plain, wide-roll, "
+                             "narrow-dark, beside; demo room also 'demo') or 'all'")
     parser.add_argument("--poisson-stress", action="store_true",
                         help="also time both Poisson solvers with Omega = all overexposed points")
     add_param_options(parser, "bench expand")   # --face-size, --solver, --seed
@@ -46,13 +57,16 @@ def run(args) -> list[dict]:
     from app.hdr.pipeline import METHODS, STAGES, ExpandParams, run_expansion
 
     values = param_values(args, "bench expand")
+    if args.rooms:
+        return _rooms(args, values)
     methods = list(METHODS) if args.methods == "all" else args.methods.split(",")
     bad = [m for m in methods if m not in METHODS]
     if bad:
         raise UsageError(None, f"unknown method(s) {', '.join(bad)} (known: {', '.join(METHODS)})")
-    if args.points < 1000:
+    points = args.points or 1_000_000
+    if points < 1000:
         raise UsageError(None, "--points must be at least 1000")
-    gt, ldr, alpha, photo, positions = scene(args.points, values["hdr.seed"])
+    gt, ldr, alpha, photo, positions = scene(points, values["hdr.seed"])
     records = []
     for method in methods:
         params = ExpandParams.from_dict({**values, "method": method})
@@ -73,8 +87,29 @@ def run(args) -> list[dict]:
                 "faces_rendered": rep.get("capture", {}).get("faces_rendered", 0)}
         records.append(record(BENCH, case, metrics))
     if args.poisson_stress:
-        records += _poisson_stress(ldr, args.points)
+        records += _poisson_stress(ldr, points)
     return records
+
+
+def _rooms(args, values) -> list[dict]:
+    from app.bench import expand_rooms as er
+    from app.errors import UsageError
+    from app.hdr.pipeline import ExpandParams
+    rooms = list(er.room_names()) if args.rooms == "all" else args.rooms.split(",")
+    bad = [r for r in rooms if r not in er.room_names()]
+    if bad:
+        raise UsageError(None, f"unknown room(s) {', '.join(bad)} "
+                               f"(known: {', '.join(er.room_names())})")
+    kinds = None if args.photos == "all" else args.photos.split(",")
+    known = set(er.kinds_for("demo"))
+    if kinds and any(k not in known for k in kinds):
+        raise UsageError(None, f"unknown photo kind(s) in {args.photos!r} "
+                               f"(known: {', '.join(sorted(known))})")
+    points = args.points or 50_000
+    if points < 1000:
+        raise UsageError(None, "--points must be at least 1000")
+    params = ExpandParams.from_dict({**values, "method": args.methods.split(",")[0]})
+    return er.run_rooms(rooms, kinds, points, params)
 
 
 def _poisson_stress(ldr, points: int) -> list[dict]:

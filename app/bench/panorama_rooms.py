@@ -12,6 +12,8 @@ does not have: the matching is not a pure rotation.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from app.camera import Camera
@@ -78,12 +80,75 @@ def brightest_direction(pano: np.ndarray) -> np.ndarray:
     return np.array([np.cos(lat) * np.sin(lon), np.sin(lat), -np.cos(lat) * np.cos(lon)])
 
 
+def box_exit(origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """Points where rays from ``origin`` (inside the room) leave the box."""
+    d = np.where(np.abs(dirs) < 1e-12, 1e-12, dirs)
+    t = np.maximum((ROOM_MIN - origin) / d, (ROOM_MAX - origin) / d).min(axis=1)
+    return origin + t[:, None] * dirs
+
+
+def photo_camera(pano: np.ndarray, position, look_offset_deg=(20.0, -10.0), fov: float = 75.0,
+                 size=(384, 256), roll_deg: float = 0.0) -> Camera:
+    """A camera at ``position`` looking ``look_offset_deg`` (yaw, pitch) away from the brightest
+    region of the panorama, so its lights are in frame but not centred; rolled by ``roll_deg``."""
+    d = brightest_direction(pano)
+    yaw, pitch = np.radians(look_offset_deg)
+    # rotate the look direction by yaw about +y, then tilt by pitch
+    c, s = np.cos(yaw), np.sin(yaw)
+    d = np.array([c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]])
+    lat = np.clip(np.arcsin(np.clip(d[1], -1, 1)) + pitch, -1.2, 1.2)
+    hz = d[[0, 2]] / max(np.linalg.norm(d[[0, 2]]), 1e-9)
+    look = np.array([np.cos(lat) * hz[0], np.sin(lat), np.cos(lat) * hz[1]])
+    right = np.cross(look, (0.0, 1.0, 0.0))
+    right /= max(np.linalg.norm(right), 1e-9)
+    up = np.cross(right, look)
+    r = np.radians(roll_deg)
+    up = np.cos(r) * up + np.sin(r) * right
+    pos = np.asarray(position, dtype=np.float64)
+    return Camera(pos, pos + look, up, fov_y_deg=fov, width=int(size[0]), height=int(size[1]))
+
+
+def render_room_photo(pano: np.ndarray, cam: Camera) -> np.ndarray:
+    """What ``cam`` sees of the box room: each pixel's ray hits a wall, whose radiance is the
+    panorama's in that point's direction from the centre (exact from the centre; from elsewhere
+    the walls show the parallax a real photo beside the capture has)."""
+    origin, rays = cam.pixel_rays()
+    hit = box_exit(np.asarray(origin, dtype=np.float64), rays.reshape(-1, 3).astype(np.float64))
+    return sample_panorama(pano, hit - CENTRE).reshape(cam.height, cam.width, 3)
+
+
+@dataclass(frozen=True)
+class PhotoKind:
+    """One way of taking the expansion's photo (the issue's protocol: field of view 40-100 deg,
+    roll up to 30 deg, exposure -3..+3 stops, 256-1024 px, at the capture or beside it)."""
+
+    name: str
+    fov: float = 75.0
+    roll: float = 0.0           # degrees
+    stops: float = 0.0          # exposure of the photo relative to the scene's radiance
+    size: tuple = (384, 256)
+    beside: float = 0.0         # metres from the capture position, sideways
+    look: tuple = (20.0, -10.0)  # (yaw, pitch) degrees away from the brightest region
+
+
+PHOTO_KINDS = (
+    PhotoKind("plain"),
+    PhotoKind("wide-roll", fov=100.0, roll=30.0, stops=3.0, size=(1024, 768), look=(35.0, -5.0)),
+    PhotoKind("narrow-dark", fov=40.0, roll=-15.0, stops=-3.0, size=(256, 256), look=(8.0, -4.0)),
+    PhotoKind("beside", fov=60.0, roll=10.0, stops=1.0, size=(512, 384), beside=0.5,
+              look=(15.0, -15.0)),
+)
+BY_PHOTO_KIND = {k.name: k for k in PHOTO_KINDS}
+
+
 def panorama_room(pano: np.ndarray, n_points: int = 50_000, seed: int = 0,
                    photo_offset_deg: tuple[float, float] = (20.0, -10.0), photo_fov: float = 75.0,
                    photo_size: tuple[int, int] = (384, 256),
-                   capture_offset=(0.35, -0.15, 0.25), clip_percentile: float = 97.0) -> DemoScene:
-    """The scene; the photo looks ``photo_offset_deg`` (yaw, pitch) away from the brightest
-    region of the panorama, so its lights are in frame but not centred."""
+                   capture_offset=(0.35, -0.15, 0.25), clip_percentile: float = 97.0,
+                   kind: PhotoKind | None = None) -> DemoScene:
+    """The scene. Without ``kind`` the photo is taken from the room centre and the capture is
+    ``capture_offset`` from it (the earlier protocol); with a ``kind`` (the issue-14 protocol)
+    the capture is at the centre and the photo at it or ``kind.beside`` metres to its side."""
     pano = np.asarray(pano, dtype=np.float32)
     pos, nrm = box_points(n_points, seed)
     gt_cols = sample_panorama(pano, pos - CENTRE)
@@ -91,17 +156,14 @@ def panorama_room(pano: np.ndarray, n_points: int = 50_000, seed: int = 0,
     y = luminance(gt_cols)
     alpha = float(1.0 / max(np.percentile(y, clip_percentile), 1e-6))
     ldr = ldr_scan(gt, alpha)
-    d = brightest_direction(pano)
-    yaw, pitch = np.radians(photo_offset_deg)
-    # rotate the look direction by yaw about +y, then tilt by pitch
-    c, s = np.cos(yaw), np.sin(yaw)
-    d = np.array([c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]])
-    lat = np.clip(np.arcsin(np.clip(d[1], -1, 1)) + pitch, -1.2, 1.2)
-    hz = d[[0, 2]] / max(np.linalg.norm(d[[0, 2]]), 1e-9)
-    look = np.array([np.cos(lat) * hz[0], np.sin(lat), np.cos(lat) * hz[1]])
-    cam = Camera(CENTRE, CENTRE + look, fov_y_deg=photo_fov, width=photo_size[0],
-                 height=photo_size[1])
-    _, rays = cam.pixel_rays()
-    photo = sample_panorama(pano, rays.reshape(-1, 3)).reshape(cam.height, cam.width, 3)
-    capture = tuple(float(x) for x in CENTRE + np.asarray(capture_offset))
-    return DemoScene(gt, ldr, alpha, photo, cam, (capture,))
+    if kind is None:
+        cam = photo_camera(pano, CENTRE, photo_offset_deg, photo_fov, photo_size)
+        capture = CENTRE + np.asarray(capture_offset)
+        photo = render_room_photo(pano, cam)
+    else:
+        look = photo_camera(pano, CENTRE, kind.look).basis()
+        side = look[0] * kind.beside  # the camera's right: sideways, level
+        cam = photo_camera(pano, CENTRE + side, kind.look, kind.fov, kind.size, kind.roll)
+        capture = CENTRE
+        photo = render_room_photo(pano, cam) * np.float32(2.0 ** kind.stops)
+    return DemoScene(gt, ldr, alpha, photo, cam, (tuple(float(x) for x in capture),))

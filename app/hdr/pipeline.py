@@ -1,9 +1,14 @@
 """HDR expansion of an LDR point cloud from one unregistered HDR photo (paper Section 4).
 
 Stages, each a function of the previous stage's output:
-    linearise -> capture (cube maps of the cloud) -> exposure (eq. 1) -> expand (ITMO or
-    PatchMatch per rendering, or ITMO per point) -> project (back to the points, depth-tested)
-    -> poisson (eqs. 2-3, fills what no rendering could give).
+    linearise -> capture (cube maps of the cloud) -> register (find the photo's camera,
+    app.hdr.registration) -> exposure (from the registration, else eq. 1) -> expand (nothing
+    when registered; else ITMO or PatchMatch per rendering, or ITMO per point) -> project (the
+    registered photo through its camera, or the expanded renderings, back to the points with a
+    depth test; values that contradict the scan are rejected) -> poisson (eqs. 2-3, fills what
+    neither could give).
+Registered is the path taken when it can be (the report's "path"); the paper's matching is the
+fallback. Every point's provenance (app.hdr.result) says which gave its value.
 The output cloud is on the LDR scan's scale: well-exposed points keep their colour, expanded
 points get alpha times the photo's radiance, so the two meet at the clipping threshold.
 
@@ -31,16 +36,16 @@ from app.hdr.exposure import find_exposure
 from app.hdr.matching import match_faces
 from app.hdr.poisson import poisson_fill
 from app.hdr.project import match_samples, project_to_points, transfer
-from app.hdr.result import (LABEL_NAMES, POISSON, PROJECTED, UNCHANGED,  # noqa: F401
-                             UNRESOLVED, Expansion)
+from app.hdr.result import (LABEL_NAMES, POISSON, PROJECTED, PROVENANCE_ATTR,  # noqa: F401
+                             REGISTERED, SCORE_ATTR, UNCHANGED, UNRESOLVED, Expansion)
 from app.io.clean import clean_rgb, describe_counts
 from app.jobs import Cancelled
 from app.params import BY_KEY, EXPAND_KEYS, param_record
 
 METHODS = BY_KEY["hdr.method"].choices
-STAGES = ("linearise", "capture", "exposure", "expand", "project", "poisson")
-_WEIGHTS = {"linearise": 0.02, "capture": 0.25, "exposure": 0.05, "expand": 0.43,
-            "project": 0.1, "poisson": 0.15}
+STAGES = ("linearise", "capture", "register", "exposure", "expand", "project", "poisson")
+_WEIGHTS = {"linearise": 0.02, "capture": 0.2, "register": 0.15, "exposure": 0.03,
+            "expand": 0.35, "project": 0.1, "poisson": 0.15}
 
 
 @param_record(*EXPAND_KEYS)
@@ -151,8 +156,9 @@ def normalise_cameras(capture_cameras, names=None) -> list:
     return out
 
 
-def _capture_faces(cloud, cams, params, prog, check, overexposed, report):
-    """Splat the faces that can see an overexposed point (the others are never used)."""
+def _capture_faces(cloud, cams, params, prog, check, overexposed, report, whole_first=False):
+    """Splat the faces that can see an overexposed point (the others are never used), and every
+    face of the first cube-map capture when ``whole_first`` (the registration searches it)."""
     radius = params.splat_scale * point_spacing(cloud.positions)
     jobs = []
     for ci, c in enumerate(cams):
@@ -167,7 +173,9 @@ def _capture_faces(cloud, cams, params, prog, check, overexposed, report):
     for j, (ci, name, cam) in enumerate(jobs):
         check()
         u, v, z = project(cam, hot)
-        if not np.any((z > 0) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)):
+        first_cube = whole_first and ci == 0 and not isinstance(cams[0], Camera)
+        if not first_cube and not np.any((z > 0) & (u >= 0) & (u < cam.width) & (v >= 0)
+                                          & (v < cam.height)):
             skipped += 1
             prog("capture", (j + 1) / len(jobs))
             continue
@@ -225,7 +233,9 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     report = {"method": method, "params": jsonable(asdict(params)), "warnings": [],
               "units": "ldr-scan: expanded colours are alpha x photo radiance"}
     per_point = method.endswith("-pc")
-    stages = [s for s in STAGES if not (per_point and s in ("capture", "project"))]
+    registering = params.registration == "auto" and not per_point
+    stages = [s for s in STAGES if not (per_point and s in ("capture", "project"))
+              and not (s == "register" and not registering)]
     prog = _Progress(progress, stages)
 
     # -- linearise ------------------------------------------------------------------------------
@@ -248,6 +258,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     y_ldr = luminance(ldr_rgb)
     over = y_ldr > params.threshold_ldr
     labels = np.zeros(n, dtype=np.uint8)
+    scores = np.full(n, np.nan, dtype=np.float32)
     timings["linearise"] = time.perf_counter() - t
     prog("linearise", 1.0)
 
@@ -257,11 +268,14 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
         report["counts"] = {"points": int(n), "overexposed": int(over.sum()),
                             **{LABEL_NAMES[k]: int((labels == k).sum()) for k in LABEL_NAMES}}
         report["timings"] = {f"seconds_{k}": float(v) for k, v in timings.items()}
+        report.setdefault("path", "none")
         out = PointCloud(cloud.positions, cloud.normals, colors, True,
                          f"expanded:{ldr_cloud.source or 'cloud'}",
-                         {"expansion": {k: report[k] for k in ("method", "alpha", "counts")}})
+                         {"expansion": {k: report[k] for k in ("method", "path", "alpha",
+                                                                "counts")}})
+        out.attributes = {PROVENANCE_ATTR: labels, SCORE_ATTR: scores}
         prog.done()
-        return Expansion(out, report, labels, list(faces))
+        return Expansion(out, report, labels, list(faces), scores)
 
     if not over.any():
         report["warnings"].append(f"no overexposed points (LDR luminance > "
@@ -275,8 +289,19 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     if not per_point:
         t = time.perf_counter()
         prog("capture", 0.0)
-        faces = _capture_faces(cloud, cams, params, prog, check, over, report)
+        faces = _capture_faces(cloud, cams, params, prog, check, over, report, registering)
         timings["capture"] = time.perf_counter() - t
+
+    # -- register -------------------------------------------------------------------------------
+    reg = None
+    if registering:
+        t = time.perf_counter()
+        prog("register", 0.0)
+        reg = _register(photo_rgb, faces, cloud, cams, params, check,
+                        lambda f: prog("register", f), report)
+        timings["register"] = time.perf_counter() - t
+        prog("register", 1.0)
+    report["path"] = "registered" if reg is not None and reg.ok else "matching"
 
     # -- exposure -------------------------------------------------------------------------------
     t = time.perf_counter()
@@ -284,6 +309,10 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     if params.alpha is not None:
         alpha = float(params.alpha)
         report["exposure"] = {"alpha": alpha, "source": "given"}
+    elif reg is not None and reg.ok:
+        alpha = float(reg.alpha)
+        report["exposure"] = {"alpha": alpha, "source": "registration: median scan / photo "
+                                                        "ratio at the points the photo sees"}
     else:
         ex = find_exposure(ldr_rgb, photo_rgb, params.bins, params.iterations,
                            include_clipped=params.exposure_include_clipped, cancel=check)
@@ -319,7 +348,9 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     has_value = np.zeros(n, dtype=bool)
     tree = None
     lum_only = method != "pmatch-rgb"
-    if per_point:
+    if report["path"] == "registered":
+        pass   # the photo's own values go to the points it sees (project)
+    elif per_point:
         idx = np.flatnonzero(over)
         nbr = None
         if method == "banterle-pc":
@@ -366,7 +397,16 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     prog("expand", 1.0)
 
     # -- project --------------------------------------------------------------------------------
-    if not per_point:
+    if report["path"] == "registered":
+        t = time.perf_counter()
+        prog("project", 0.0)
+        values, has_value, seen = project_registered(photo_rgb, reg.camera, cloud, over, params,
+                                                     alpha, check)
+        report["projection"] = {"overexposed_seen": int(seen.sum())}
+        scores[has_value] = reg.quality
+        timings["project"] = time.perf_counter() - t
+        prog("project", 1.0)
+    elif not per_point:
         t = time.perf_counter()
         prog("project", 0.0)
         targets = np.flatnonzero(over)
@@ -374,6 +414,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
                                params.threshold_ssd if method.startswith("pmatch") else None,
                                cancel=check)
         values, has_value = pj.values, pj.has_value
+        scores[has_value] = pj.score[has_value]
         report["projection"] = {"overexposed_seen": int(pj.seen.sum()),
                                 "samples_accepted": pj.samples, "samples_rejected": pj.rejected}
         if method.startswith("pmatch") and len(pj.ssd):
@@ -400,8 +441,18 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
         prog("project", 1.0)
 
     got = over & has_value
+    bad = got & ~consistent(values, ldr_rgb, params.consistency)
+    report["rejected_inconsistent"] = int(bad.sum())
+    if bad.any():
+        got &= ~bad
+        has_value = has_value & ~bad
+        scores[bad] = np.nan
+    if bad.sum() > 0.01 * over.sum():
+        report["warnings"].append(f"{int(bad.sum())} expanded values contradicted the scan (a "
+                                  "channel it measured, or darker than its clip level) and were "
+                                  "left to Poisson editing")
     hdr[got] = np.maximum(values[got], 0.0)
-    labels[got] = PROJECTED
+    labels[got] = REGISTERED if report["path"] == "registered" else PROJECTED
 
     # -- poisson --------------------------------------------------------------------------------
     t = time.perf_counter()
@@ -444,6 +495,58 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
         hdr[bad] = ldr_rgb[bad]
         report["warnings"].append(f"{int(bad.sum())} non-finite expanded colours replaced by LDR")
     return finish(hdr, alpha, faces)
+
+
+def _register(photo_rgb, faces, cloud, cams, params, check, progress, report):
+    """The first cube-map capture position whose panorama the photo registers to."""
+    from app.hdr.registration import Registration, register
+    positions = [c for c in cams if not isinstance(c, Camera)]
+    if not positions:
+        reg = Registration(None, "registration searches a cube-map capture; only single-view "
+                                 "cameras were given")
+    else:
+        reg = register(photo_rgb, faces, cloud, positions[0], params.threshold_ldr, check,
+                       progress)
+    report["registration"] = reg.to_report()
+    if not reg.ok:
+        report["warnings"].append(f"the photo could not be registered ({reg.reason}): falling "
+                                  f"back to {params.method}")
+    return reg
+
+
+def project_registered(photo_rgb, camera, cloud, over, params, alpha, check):
+    """(values, has_value, seen): alpha x the photo's radiance at the overexposed points its
+    registered ``camera`` sees, depth-tested against the cloud splatted from that camera (at
+    most 1024 px on a side)."""
+    from app.hdr.project import bilinear
+    h, w = photo_rgb.shape[:2]
+    f = min(1.0, 1024 / max(h, w))
+    zcam = Camera(camera.position, camera.look_at, camera.up, camera.fov_y_deg,
+                  max(8, round(w * f)), max(8, round(h * f)))
+    radius = params.splat_scale * point_spacing(cloud.positions)
+    face, _ = splat_face(zcam, cloud.positions, cloud.normals, cloud.colors, radius,
+                         cancel=check, name="photo")
+    targets = np.flatnonzero(over)
+    vis, u, v = face.visible(cloud.positions[targets])
+    n = len(cloud)
+    values = np.zeros((n, 3), dtype=np.float32)
+    has = np.zeros(n, dtype=bool)
+    sel = targets[vis]
+    rgb = bilinear(photo_rgb, u[vis] / f - 0.5, v[vis] / f - 0.5)
+    values[sel] = (alpha * rgb).astype(np.float32)
+    has[sel] = True
+    return values, has, has.copy()
+
+
+def consistent(values: np.ndarray, ldr: np.ndarray, tolerance: float) -> np.ndarray:
+    """Whether each expanded value agrees with what the scan did measure: channels below the
+    clip level within ``tolerance`` (relative, plus two 8-bit steps), clipped ones not darker
+    than half the tolerance below the clip level."""
+    clipped = ldr >= 0.98
+    slack = tolerance * ldr + 2.0 / 255.0
+    ok_open = clipped | (np.abs(values - ldr) <= slack)
+    ok_clip = ~clipped | (values >= ldr * (1.0 - 0.5 * tolerance))
+    return np.all(ok_open & ok_clip, axis=1)
 
 
 def expand_cloud(ldr_cloud: PointCloud, photo, capture_cameras, method: str | None = None,

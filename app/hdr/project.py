@@ -65,6 +65,7 @@ class Projection:
     samples: int          # accepted samples
     rejected: int         # samples with SSD > th
     ssd: np.ndarray       # SSD of all samples (accepted or not), for the report
+    score: np.ndarray     # (N,) float32 best accepted SSD per point (NaN: none, or no SSD)
 
 
 def project_to_points(points: np.ndarray, ldr: np.ndarray, targets: np.ndarray,
@@ -80,6 +81,7 @@ def project_to_points(points: np.ndarray, ldr: np.ndarray, targets: np.ndarray,
     seen = np.zeros(len(targets), dtype=bool)
     accepted = rejected = 0
     ssds = []
+    best = np.full(len(targets), np.inf)
     tp = points[targets]
     for fi, face in enumerate(faces):
         if cancel is not None:
@@ -98,6 +100,9 @@ def project_to_points(points: np.ndarray, ldr: np.ndarray, targets: np.ndarray,
             rejected += int((~ok).sum())
             w = np.where(ok, 1.0 / (ssd + SSD_EPS), 0.0)
         good = w > 0
+        if ssd is not None:
+            idx = sel[good]
+            best[idx] = np.minimum(best[idx], ssd[good])
         accepted += int(good.sum())
         acc[sel[good]] += w[good, None] * rgb[good]
         wsum[sel[good]] += w[good]
@@ -108,8 +113,11 @@ def project_to_points(points: np.ndarray, ldr: np.ndarray, targets: np.ndarray,
     has[targets[ok]] = True
     seen_all = np.zeros(n, dtype=bool)
     seen_all[targets[seen]] = True
+    score = np.full(n, np.nan, dtype=np.float32)
+    fin = np.isfinite(best)
+    score[targets[fin]] = best[fin]
     return Projection(values, has, seen_all, accepted, rejected,
-                      np.concatenate(ssds) if ssds else np.zeros(0))
+                      np.concatenate(ssds) if ssds else np.zeros(0), score)
 
 
 def transfer(rgb: np.ndarray, ldr: np.ndarray, luminance_only: bool) -> np.ndarray:

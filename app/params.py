@@ -247,6 +247,11 @@ PARAMS: tuple[Param, ...] = (
        "no calibration) and project the photo's HDR values through it; 'off', or when no camera "
        "makes the photo agree with the scan: the method's matching (PatchMatch or ITMO).",
        ("auto", "off"), redo="job"),
+    _c("hdr.unseen", "matching", "Registered path: the overexposed points the photo does not see "
+       "are filled by Poisson editing, or first matched (the method's PatchMatch / ITMO) when "
+       "the matching agrees with the photo on the points both see.", ("matching", "poisson"),
+       redo="job",
+       when=("hdr.registration", ("auto",))),
     _f("hdr.consistency", 0.35, "Never worse than the scan: an expanded value is rejected (left "
        "to Poisson) when a channel the scan did not clip differs from it by more than this "
        "fraction, or a clipped one falls below its clip level by more than half of it.",

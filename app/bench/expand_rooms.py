@@ -13,6 +13,7 @@ cloud's (higher is better; the issue's targets in brackets):
 - ``seen``: RMS on the LDR-saturated points the photo sees, in ground-truth units after aligning
   the scale on the unsaturated points (>= 3);
 - ``all``: the same over every saturated point (>= 1: never worse than the scan);
+  (a refused photo - "path" refused - leaves the scan as it is: ratios of 1);
 - ``diffuse`` / ``metal``: the paper's Table 2 protocol, a diffuse and a rough (0.5) metal sphere
   at the room's centre relit by the cloud vs by the ground truth, relative RMSE (>= 3);
 and the exposure's error against the true one (within 5%).
@@ -169,8 +170,14 @@ def run_case(room: str, kind: str, points: int, params, spheres_cache: dict | No
     from app.hdr.pipeline import run_expansion
     from app.hdr.result import LABEL_NAMES, POISSON, PROJECTED, REGISTERED
     sc, alpha_true = build_case(room, kind, points, seed)
+    from app.errors import ScanlightError
+    from app.hdr.result import Expansion
     t0 = time.perf_counter()
-    res = run_expansion(sc.ldr, sc.photo, sc.capture_positions, params=params)
+    try:
+        res = run_expansion(sc.ldr, sc.photo, sc.capture_positions, params=params)
+    except ScanlightError as e:   # refused (another room, as far as it can tell): the scan stays
+        res = Expansion(sc.ldr, {"path": "refused", "reason": str(e), "counts": {},
+                                 "alpha": None}, np.zeros(len(sc.ldr), np.uint8))
     wall = time.perf_counter() - t0
     rep = res.report
     seen = photo_sees(sc.gt, sc.photo_camera)
@@ -203,7 +210,8 @@ def run_case(room: str, kind: str, points: int, params, spheres_cache: dict | No
     rec["details"] = {"rms": {k: m[k] for k in m if k.startswith(("rms_", "ldr_rms_"))},
                       "render_rel": exp_err, "ldr_render_rel": ldr_err,
                       "saturated_seen": m["saturated_seen"], "counts": counts,
-                      "registration": rep.get("registration")}
+                      "registration": rep.get("registration"), "unseen": rep.get("unseen"),
+                      "refused": rep.get("reason")}
     return rec
 
 

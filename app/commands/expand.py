@@ -140,8 +140,11 @@ def run(args) -> int:
         print(f"expand: warning: {w}", file=sys.stderr)
     c = rep["counts"]
     alpha = rep.get("alpha")
-    print(f"expanded {c['points']} points ({params.method}): {c['overexposed']} overexposed, "
-          f"{c['expanded_by_projection']} by projection, {c['filled_by_poisson']} by Poisson, "
+    path = rep.get("path", "matching")
+    how = "registered photo" if path == "registered" else params.method
+    print(f"expanded {c['points']} points ({how}): {c['overexposed']} overexposed, "
+          f"{c['projected_from_registered_photo']} from the registered photo, "
+          f"{c['expanded_by_projection']} by matching, {c['filled_by_poisson']} by Poisson, "
           f"{c['unresolved']} unresolved; alpha = "
           f"{'n/a' if alpha is None else f'{alpha:.4g}'}; "
           f"{rep['timings']['seconds_total']:.1f} s -> {out}")

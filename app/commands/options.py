@@ -42,7 +42,8 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
     "bench classic": _flags(("pbgi.memory_budget_mb",)),
     "bench glossy": _flags(("pbgi.microbuffer",)),
     "bench asset": _flags(("pbgi.microbuffer", "pbgi.asset_surfels")),
-    "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed"),
+    "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed",
+                            "hdr.registration"),
                            {"hdr.poisson_solver": "--solver"}),
 }
 # (command, key) -> help where the table's text does not fit the command's use of the value

@@ -209,6 +209,16 @@ class PointScore:
         self.scale = img.shape[0] / self.shape[0]
 
     def residuals(self, basis, fov, position) -> np.ndarray:
+        """log(Y_scan) - log(Y_photo) at the sample points the camera sees."""
+        return self._residuals(basis, fov, position)
+
+    def pairs(self, basis, fov, position) -> tuple[np.ndarray, np.ndarray]:
+        """(log Y_scan, log Y_photo) at the sample points the camera sees."""
+        r, ok = self._residuals(basis, fov, position, keep=True)
+        logy = self.logy[ok]
+        return logy, logy - r
+
+    def _residuals(self, basis, fov, position, keep: bool = False):
         h, w = self.img.shape
         d = self.p - position
         front = np.einsum("ij,ij->i", self.n, -d) > 0
@@ -226,7 +236,7 @@ class PointScore:
         im = self.img
         val = ((im[y0, x0] * (1 - fx) + im[y0, x0 + 1] * fx) * (1 - fy)
                + (im[y0 + 1, x0] * (1 - fx) + im[y0 + 1, x0 + 1] * fx) * fy)
-        return self.logy[ok] - val
+        return (self.logy[ok] - val, ok) if keep else self.logy[ok] - val
 
     def cost(self, basis, fov, position) -> tuple[float, int, float]:
         """(truncated mean squared deviation from the median, points, median offset)."""

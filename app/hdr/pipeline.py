@@ -269,6 +269,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
                             **{LABEL_NAMES[k]: int((labels == k).sum()) for k in LABEL_NAMES}}
         report["timings"] = {f"seconds_{k}": float(v) for k, v in timings.items()}
         report.setdefault("path", "none")
+        report["provenance"] = provenance_summary(labels, scores)
         out = PointCloud(cloud.positions, cloud.normals, colors, True,
                          f"expanded:{ldr_cloud.source or 'cloud'}",
                          {"expansion": {k: report[k] for k in ("method", "path", "alpha",
@@ -348,7 +349,9 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     has_value = np.zeros(n, dtype=bool)
     tree = None
     lum_only = method != "pmatch-rgb"
-    if report["path"] == "registered":
+    registered = report["path"] == "registered"
+    match_unseen = registered and params.unseen == "matching" and not per_point
+    if registered and not match_unseen:
         pass   # the photo's own values go to the points it sees (project)
     elif per_point:
         idx = np.flatnonzero(over)
@@ -397,26 +400,38 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
     prog("expand", 1.0)
 
     # -- project --------------------------------------------------------------------------------
-    if report["path"] == "registered":
+    source = np.full(n, PROJECTED, dtype=np.uint8)   # where has_value: REGISTERED or PROJECTED
+    if registered:
         t = time.perf_counter()
         prog("project", 0.0)
         values, has_value, seen = project_registered(photo_rgb, reg.camera, cloud, over, params,
                                                      alpha, check)
         report["projection"] = {"overexposed_seen": int(seen.sum())}
         scores[has_value] = reg.quality
+        source[has_value] = REGISTERED
         timings["project"] = time.perf_counter() - t
-        prog("project", 1.0)
-    elif not per_point:
+        prog("project", 1.0 if not match_unseen else 0.5)
+    if not per_point and (not registered or match_unseen):
         t = time.perf_counter()
-        prog("project", 0.0)
+        prog("project", 0.5 if registered else 0.0)
         targets = np.flatnonzero(over)
         pj = project_to_points(cloud.positions, ldr_rgb, targets, faces, sampler,
                                params.threshold_ssd if method.startswith("pmatch") else None,
                                cancel=check)
-        values, has_value = pj.values, pj.has_value
-        scores[has_value] = pj.score[has_value]
-        report["projection"] = {"overexposed_seen": int(pj.seen.sum()),
-                                "samples_accepted": pj.samples, "samples_rejected": pj.rejected}
+        if registered:
+            use = pj.has_value & ~has_value
+            if not _matching_agrees(values, has_value, pj, params, report):
+                use[:] = False
+            values[use] = pj.values[use]
+            has_value = has_value | use
+            pj.has_value = use
+        else:
+            values, has_value = pj.values, pj.has_value
+        scores[pj.has_value] = pj.score[pj.has_value]
+        source[pj.has_value] = PROJECTED
+        report.setdefault("projection", {}).update({
+            "overexposed_seen_by_captures": int(pj.seen.sum()),
+            "samples_accepted": pj.samples, "samples_rejected": pj.rejected})
         if method.startswith("pmatch") and len(pj.ssd):
             fin = pj.ssd[np.isfinite(pj.ssd)]
             med = float(np.median(fin)) if len(fin) else None
@@ -424,6 +439,8 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
             report["match"].update({"median_ssd": med, "rejected_fraction": rej})
             if report["match"]["close_match_fraction"] < params.good_match_min:
                 report["low_match_quality"] = True
+                if reg is not None and not reg.ok:   # registration failed too: another room
+                    raise ScanlightError(_name(names, "photo"), _another_room(report, params))
                 report["warnings"].append(
                     f"low match quality: only {report['match']['close_match_fraction']:.1%} of "
                     "the renderings' textured patches have a close match in the photo; the photo "
@@ -452,7 +469,7 @@ def run_expansion(ldr_cloud: PointCloud, photo, capture_cameras, method: str | N
                                   "channel it measured, or darker than its clip level) and were "
                                   "left to Poisson editing")
     hdr[got] = np.maximum(values[got], 0.0)
-    labels[got] = REGISTERED if report["path"] == "registered" else PROJECTED
+    labels[got] = source[got]
 
     # -- poisson --------------------------------------------------------------------------------
     t = time.perf_counter()
@@ -512,6 +529,54 @@ def _register(photo_rgb, faces, cloud, cams, params, check, progress, report):
         report["warnings"].append(f"the photo could not be registered ({reg.reason}): falling "
                                   f"back to {params.method}")
     return reg
+
+
+UNSEEN_TRUST = 0.75  # share of the points both see where matching is within 2x of the photo
+                     # (measured: 0.81-0.99 where matching helped, 0.66-0.67 in the studio)
+
+
+def _matching_agrees(reg_values, reg_has, pj, params, report) -> bool:
+    """Whether matching may fill the points the registered photo does not see: only when, on the
+    points both see, its values agree with the photo's own (within a factor of 2 in luminance)
+    for at least UNSEEN_TRUST of them. The photo is the truth where it looks; a matcher that
+    misses there (a studio lamp matched to a clipped softbox) would miss where it does not."""
+    both = reg_has & pj.has_value
+    yr, ym = luminance(reg_values[both]), luminance(pj.values[both])
+    agree = float(np.mean(np.abs(np.log((ym + 1e-6) / (yr + 1e-6))) < np.log(2.0))) \
+        if both.any() else 0.0
+    ok = bool(both.sum() >= 50 and agree >= UNSEEN_TRUST)
+    report["unseen"] = {"mode": params.unseen, "checked_points": int(both.sum()),
+                        "matching_agrees": agree, "used": ok}
+    if not ok:
+        report["warnings"].append(
+            f"matching agreed with the registered photo on only {agree:.0%} of the {int(both.sum())} "
+            f"points both see ({UNSEEN_TRUST:.0%} needed): the points the photo does not see are "
+            "left to Poisson editing")
+    return ok
+
+
+def provenance_summary(labels: np.ndarray, scores: np.ndarray) -> dict:
+    """Per provenance label: points, share, the score's meaning and its median where it has one."""
+    from app.hdr.result import PROVENANCE
+    out = {}
+    n = max(len(labels), 1)
+    for code, (name, meaning) in PROVENANCE.items():
+        sel = labels == code
+        s = scores[sel]
+        s = s[np.isfinite(s)]
+        out[LABEL_NAMES[code]] = {"label": name, "code": code, "points": int(sel.sum()),
+                                  "share": float(sel.sum() / n), "score": meaning,
+                                  "median_score": float(np.median(s)) if len(s) else None}
+    return out
+
+
+def _another_room(report, params) -> str:
+    close = report["match"]["close_match_fraction"]
+    return (f"the photo does not show this room: no camera makes it agree with the scan "
+            f"({report['registration']['reason']}) and only {close:.1%} of the renderings' "
+            f"textured patches match it closely ({params.good_match_min:.0%} needed). If it is "
+            "this room, take it nearer the capture position with a wider view, or pass "
+            "--registration off to expand by matching anyway")
 
 
 def project_registered(photo_rgb, camera, cloud, over, params, alpha, check):

@@ -27,6 +27,9 @@ SCREEN = 8                # coarse candidates screened by a short refinement
 FINALISTS = 3             # screened candidates refined fully (rotation, fov, then position)
 AGREE_LOG = 0.3           # a point agrees when |log(scan/photo) - median| is below this (~35%)
 MIN_AGREE = 0.8           # fraction of the seen points that must agree (true cameras: 0.86-1)
+MIN_CORRELATION = 0.5     # of log luminance, scan vs photo, at those points (true: 0.62-1)
+MIN_SPREAD = 0.2          # std of the scan's log luminance there (a flat wall agrees with a
+                          # flat sky at any camera: 0.09 for a city photo in the warehouse)
 MIN_POINTS = 300          # unsaturated scan points the photo must see
 
 
@@ -83,19 +86,31 @@ def register(photo_rgb: np.ndarray, faces, ldr: "PointCloud", position, tl: floa
             best = c
     prog(0.95)
     score.set_resolution(max(h, w))
-    r = score.residuals(best.basis, best.fov, best.position)
+    ys, yp = score.pairs(best.basis, best.fov, best.position)
+    r = ys - yp
     details = {"candidates": len(cands), "coarse_score": cands[0].score if cands else None}
     if len(r) < MIN_POINTS:
         return Registration(None, f"at the best camera the photo sees only {len(r)} unsaturated "
                                   f"scan points ({MIN_POINTS} needed)", len(r), details=details)
     m = float(np.median(r))
     agree = float(np.mean(np.abs(r - m) < AGREE_LOG))
+    # agreement means something only where the view has structure to agree on: a flat wall
+    # agrees with a flat sky at any camera
+    spread = float(np.std(ys))
+    corr = float(np.corrcoef(ys, yp)[0, 1]) if spread > 1e-6 and np.std(yp) > 1e-6 else 0.0
+    details.update({"log_spread": spread, "correlation": corr})
     cost = -best.score
     cam = al.to_camera(best, w, h)
-    if agree < MIN_AGREE:
+    if spread < MIN_SPREAD:
+        return Registration(None, f"the best camera sees a featureless part of the scan (log "
+                                  f"luminance spread {spread:.2f}, {MIN_SPREAD} needed): the "
+                                  "agreement proves nothing", len(r), agree, cost,
+                            details={**details, "best_camera": cam.to_dict()})
+    if agree < MIN_AGREE or corr < MIN_CORRELATION:
         return Registration(None, f"no camera makes the photo agree with the scan: at the best "
-                                  f"one only {agree:.0%} of {len(r)} points agree "
-                                  f"({MIN_AGREE:.0%} needed)", len(r), agree, cost,
+                                  f"one {agree:.0%} of {len(r)} points agree ({MIN_AGREE:.0%} "
+                                  f"needed), correlation {corr:.2f} ({MIN_CORRELATION} needed)",
+                            len(r), agree, cost,
                             details={**details, "best_camera": cam.to_dict()})
     q = float(np.clip((agree - MIN_AGREE) / (1 - MIN_AGREE), 0, 1))  # 0 at the threshold
     return Registration(cam, "registered", len(r), agree, cost, float(np.exp(m)), q, details)

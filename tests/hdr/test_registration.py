@@ -71,16 +71,22 @@ def test_provenance_is_recorded_per_point(apartment_narrow):
     assert (labels != UNCHANGED).sum() == over
 
 
-def test_a_photo_of_another_room_is_not_registered():
-    """The city's photo against the apartment's scan: no camera makes them agree."""
-    if not (DATA / "apartment.exr").is_file() or not (DATA / "city.exr").is_file():
+@pytest.mark.parametrize("scan, photo", [("apartment", "city"), ("warehouse", "city")])
+def test_a_photo_of_another_room_is_not_registered(scan, photo):
+    """No camera makes another room's photo agree with the scan; the city's sky against the
+    warehouse's plain wall agrees everywhere, and is refused for having nothing to agree on."""
+    if not (DATA / f"{scan}.exr").is_file() or not (DATA / f"{photo}.exr").is_file():
         pytest.skip("../shared/data panoramas not present")
-    sc, _ = build_case("apartment", "plain", 30_000)
-    other, _ = build_case("city", "plain", 2_000)
-    res = run_expansion(sc.ldr, other.photo, sc.capture_positions, params=FAST)
+    sc, _ = build_case(scan, "plain", 30_000)
+    other, _ = build_case(photo, "plain", 2_000)
+    from app.errors import ScanlightError
+    try:
+        res = run_expansion(sc.ldr, other.photo, sc.capture_positions, params=FAST)
+    except ScanlightError as e:     # refused outright (PatchMatch found no close match either)
+        assert "does not show this room" in str(e) and "no camera" in str(e)
+        return
     reg = res.report["registration"]
-    assert not reg["registered"] and res.report["path"] == "matching"
-    assert reg["agree"] < 0.8 and "agree" in reg["reason"]
+    assert not reg["registered"] and res.report["path"] == "matching", reg
     assert any("could not be registered" in w for w in res.report["warnings"])
 
 
@@ -110,3 +116,19 @@ def test_values_that_contradict_the_scan_are_refused():
                        [0.4, 0.5, 0.2]],   # red below its clip level: refused
                       dtype=np.float32)
     np.testing.assert_array_equal(consistent(values, ldr, 0.35), [True, False, True, False, False])
+
+
+def test_a_photo_that_neither_registers_nor_matches_is_refused():
+    """Registration fails and PatchMatch finds almost no close match: another room, refused
+    with one line that says what to do; with registration off the matching runs anyway."""
+    if not (DATA / "apartment.exr").is_file():
+        pytest.skip("../shared/data/apartment.exr not present")
+    from app.errors import ScanlightError
+    other, _ = build_case("apartment", "plain", 2_000)
+    sc, _ = build_case("demo", "demo", 30_000)
+    with pytest.raises(ScanlightError, match="does not show this room.*--registration off"):
+        run_expansion(sc.ldr, other.photo, sc.capture_positions, params=FAST,
+                      names={"photo": "other.exr"})
+    res = run_expansion(sc.ldr, other.photo, sc.capture_positions,
+                        params=ExpandParams(face_size=256, registration="off"))
+    assert res.report["low_match_quality"] and res.report["path"] == "matching"

@@ -272,3 +272,12 @@ def test_report_lists_the_registered_points(ui, monkeypatch):
     monkeypatch.setattr(imgui, "text_wrapped", lambda t, *a: (wrapped.append(t), real(t, *a))[1])
     _draw(ui, 1)
     assert any("4,321 from the registered photo" in t for t in wrapped), wrapped
+
+
+def test_report_says_which_path_the_expansion_took():
+    from app.ui.panels.hdr import path_line
+    assert path_line({"path": "registered", "registration": {"quality": 0.75, "agree": 0.95}}) \
+        == "path: registered photo (q = 0.75, 95% of its points agree with the scan)"
+    assert path_line({"path": "matching", "registration": {"reason": "only 40% agree"}}) \
+        == "path: matching (not registered: only 40% agree)"
+    assert path_line({"path": "matching"}) == "path: matching (registration off)"

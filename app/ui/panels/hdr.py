@@ -27,7 +27,7 @@ def _photo_thumbnail(ui):
     return ui.textures.set(PHOTO, tonemap_to_srgb8(small, ev))
 
 
-REPORT_LINES = 4   # the report area's fixed height, in lines: the panel never reflows
+REPORT_LINES = 6   # the report area's fixed height, in lines: the panel never reflows
 
 
 def _photo(ui) -> None:
@@ -136,6 +136,17 @@ def _right_aligned(text: str) -> None:
     imgui.text(text)
 
 
+def path_line(rep: dict) -> str:
+    """Which path the expansion took, in one line (the report's "path" and "registration")."""
+    reg = rep.get("registration") or {}
+    if rep.get("path") == "registered":
+        return (f"path: registered photo (q = {reg.get('quality', 0):.2f}, "
+                f"{reg.get('agree', 0):.0%} of its points agree with the scan)")
+    if reg:
+        return f"path: matching (not registered: {reg.get('reason', '?')})"
+    return "path: matching (registration off)" if rep.get("path") == "matching" else ""
+
+
 def _report(ui) -> None:
     rep = ui.hdr_report
     h = imgui.get_text_line_height_with_spacing() * REPORT_LINES + 4
@@ -144,6 +155,7 @@ def _report(ui) -> None:
         imgui.text_disabled("no expansion yet")
     else:
         c = rep.get("counts", {})
+        imgui.text_wrapped(path_line(rep))
         imgui.text_wrapped(
             f"{c.get('overexposed', 0):,} overexposed points: "
             f"{c.get('projected_from_registered_photo', 0):,} from the registered photo, "

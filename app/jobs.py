@@ -11,9 +11,11 @@ A job runs ``work(request, progress, cancel)`` on an immutable request:
 
 The owner polls from its own thread (``job.poll()`` once per frame, or ``job.wait()``), so
 results, errors and progress callbacks never run on the worker. Modes:
-- "thread": a daemon thread. numpy/scipy release the GIL in their large operations and the
-  expansion has no long pure-Python loop, so the main thread stays responsive
-  (tests/hdr/test_jobs.py checks the main thread's worst gap while an expansion runs);
+- "thread": a daemon thread. numpy/scipy release the GIL in their large operations, so the
+  main thread stays responsive (tests/hdr/test_jobs.py checks its worst gap while an expansion
+  runs); but the photo's registration is a long run of small evaluations that need the GIL
+  between numpy calls, so an owner that itself holds the GIL a lot (a viewer in GL calls)
+  slows the job down many times. The command line uses a thread, the viewer a process;
 - "process": a spawned process (safe beside a GL context, unlike fork); nothing shared, so
   even a GIL-bound step cannot stall the UI, and a cancel that the work does not honour within
   ``kill_after`` seconds terminates the process. Costs an interpreter start-up and the

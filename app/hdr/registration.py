@@ -71,20 +71,24 @@ def register(photo_rgb: np.ndarray, faces, ldr: "PointCloud", position, tl: floa
         return Registration(None, "the capture's cube map is incomplete (faces that see no "
                                   "overexposed point were skipped): no panorama to search")
     cands = al.coarse_search(photo_rgb, mine, position, top=SCREEN, check=check)
-    prog(0.4)
+    if not cands:
+        return Registration(None, "the capture's panorama has no view to compare with the photo")
+    # progress in proportion to the work (coarse search ~1/8, screening ~1/4, finalists the rest)
+    prog(0.12)
     score = al.PointScore(photo_rgb, ldr.positions, ldr.normals, ldr.colors, tl)
     screened = []
-    for c in cands:
+    for k, c in enumerate(cands):
         screened.append(al.refine(score, c, False, check, resolutions=(48, 96)))
-    prog(0.6)
+        prog(0.12 + 0.2 * (k + 1) / len(cands))
     screened.sort(key=lambda c: -c.score)
     best = None
-    for c in screened[:FINALISTS]:
+    finalists = screened[:FINALISTS]
+    for k, c in enumerate(finalists):
         c = al.refine(score, c, False, check, resolutions=(192,))
         c = al.refine(score, c, True, check, resolutions=(96, 192, 384))
         if best is None or c.score > best.score:
             best = c
-    prog(0.95)
+        prog(0.32 + 0.63 * (k + 1) / len(finalists))
     score.set_resolution(max(h, w))
     ys, yp = score.pairs(best.basis, best.fov, best.position)
     r = ys - yp

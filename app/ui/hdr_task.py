@@ -2,11 +2,14 @@
 
 The request is app.hdr.job.ExpandRequest, the one the command line builds too: immutable, taken
 when Run is pressed (the LDR cloud, the photo, the capture positions and ExpandParams from the
-viewer's settings, ``ExpandRequest.from_settings``). The work runs in an app.jobs worker thread
-(numpy/scipy release the GIL in their large operations; app.jobs says more); the viewer polls
-the job once per frame and applies the result on the main thread (new splat colours,
-Relighter.set_cloud), so GL never leaves the main thread. ``synchronous=True`` runs it inline
-(tests).
+viewer's settings, ``ExpandRequest.from_settings``). The work runs in an app.jobs worker
+*process*, not a thread: the photo's registration is thousands of small cost evaluations whose
+Python between numpy calls needs the GIL, and a viewer that renders frames holds the GIL through
+its GL calls, so in a thread the two starve each other (the job took 10x longer beside an
+orbiting viewer; tests/ui/test_ui_engine.py runs exactly that). The viewer polls the job once per
+frame and applies the result on the main thread (new splat colours, Relighter.set_cloud), so GL
+never leaves the main thread, and a cancel the work does not honour in time ends the process.
+``synchronous=True`` runs it inline (tests).
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ class ExpansionTask:
     """
 
     def __init__(self, request: ExpandRequest, synchronous: bool = False,
-                 mode: str = "thread"):
+                 mode: str = "process"):
         self.request = request
         self.job = Job(run_expand_request, request, "sync" if synchronous else mode)
         self.job.start()

@@ -101,6 +101,14 @@ class Relighter:
         from app.pbgi.bsh_cache import load_or_build
         if len(cloud) == 0:
             raise ScanlightError(cloud.source, "the point cloud is empty")
+        # radiance is finite and non-negative (load_cloud repairs files: app.io.clean); checked
+        # here for every path, the recolouring of a cached tree included, not only the BSH build
+        bad = ~np.isfinite(cloud.colors).all(axis=1)
+        neg = (cloud.colors < 0).any(axis=1)
+        if bad.any() or neg.any():
+            raise ScanlightError(cloud.source, f"{int(bad.sum())} points have NaN or Inf colours "
+                                               f"and {int(neg.sum())} negative ones: radiance "
+                                               "must be finite and non-negative")
         geo_key = _fingerprint(cloud.positions, cloud.normals)
         col_key = _fingerprint(cloud.colors)
         if hierarchy is None:

@@ -165,6 +165,21 @@ def _b(key, default, help, **kw) -> Param:
 RENDER_MODES = ("classic", "mipmapped", "hybrid", "envmap")   # app/pbgi/modes.py: one class each
 HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
 
+# Quality presets: named bundles of the settings that trade speed for accuracy, chosen from the
+# Pareto front that ``scanlight bench tradeoff`` measures (README, "Speed against accuracy").
+# ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
+# below), so a fresh viewer and a command line without --quality get exactly that preset.
+QUALITY_PRESETS: dict[str, dict[str, Any]] = {
+    "preview": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 16, "pbgi.render_scale": 0.5,
+                "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
+    "balanced": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
+                 "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
+    "final": {"pbgi.mode": "classic", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
+              "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
+}
+DEFAULT_QUALITY = "balanced"
+CUSTOM_QUALITY = "custom"
+
 PARAMS: tuple[Param, ...] = (
     # -- display (the viewer) -------------------------------------------------------------------
     _f("view.exposure", 0.0, "Exposure before the tone mapper: radiance x 2^EV.", -10.0, 10.0,
@@ -189,6 +204,10 @@ PARAMS: tuple[Param, ...] = (
     _b("view.free_orbit", False, "Let the orbit, pan and zoom take the eye under the scan's "
        "floor (off: the eye stays 5 cm above it; app/ui/navigation.py)."),
     # -- PBGI: RenderParams, plus the viewer-only render_scale, preview_scale, frame_budget_ms -----
+    _c("pbgi.quality", DEFAULT_QUALITY, "Quality preset: sets the mode, micro-buffer size, GI "
+       "render scale, parallax tolerance and node stop factor together, from the measured "
+       "speed/accuracy trade (preview: fastest, final: most accurate); 'custom' once one of them "
+       "is changed by hand.", (*QUALITY_PRESETS, CUSTOM_QUALITY), label="quality", redo="none"),
     _c("pbgi.mode", "hybrid", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
        "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "
        "near field per pixel (several times faster). Environment map: one cube map from the "
@@ -219,10 +238,17 @@ PARAMS: tuple[Param, ...] = (
     _i("pbgi.idle_passes", 4, "Passes the viewer averages while the view stays still, after "
        "the first full-resolution image (the same jitter as `render --passes`); 1 = none.",
        1, 64, "", label="idle passes", redo="none"),
-    _f("pbgi.render_scale", 1.0, "Final GI resolution relative to the viewport (refined in "
-       "tiles when the view is idle).", 0.125, 1.0, "x", redo="gi"),
+    _f("pbgi.render_scale", 1.0, "GI resolution of a final image relative to its size (the "
+       "viewer's layer, refined in tiles when the view is idle, and `render`), brought back to "
+       "full resolution by joint bilateral upsampling guided by the full-resolution G-buffer.",
+       0.125, 1.0, "x", redo="gi"),
     _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "
        "with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x", redo="gi"),
+    _f("pbgi.stop_factor", 4.0, "A node is accepted into a receiver's micro-buffer once its solid "
+       "angle is at most this times a micro-pixel's (Section 5.3 of the paper: 4); 1 refines "
+       "further (sharper near field, slower). Classic, Mipmapped and Hybrid.", 1.0, 16.0, "x",
+       label="node stop factor", log=True, redo="gi", ui=False,
+       when=("pbgi.mode", ("classic", "mipmapped", "hybrid"))),
     _f("pbgi.omega_tr_factor", 32.0, "Exact Hybrid (parallax tolerance 0): a node is refined "
        "per pixel once its solid angle drops below this factor times the micro-pixel's.",
        1.0, 256.0, "x", label="Omega_tr factor", log=True, redo="gi",
@@ -314,6 +340,12 @@ PARAMS: tuple[Param, ...] = (
 BY_KEY: dict[str, Param] = {p.key: p for p in PARAMS}
 assert len(BY_KEY) == len(PARAMS), "a key is declared twice"
 assert all(p.when is None or set(p.when[1]) <= set(BY_KEY[p.when[0]].choices) for p in PARAMS)
+QUALITY_KEYS = tuple(dict.fromkeys(k for preset in QUALITY_PRESETS.values() for k in preset))
+assert all(set(p) == set(QUALITY_KEYS) for p in QUALITY_PRESETS.values()), \
+    "every preset sets the same keys"
+assert all(BY_KEY[k].check(v) == v for p in QUALITY_PRESETS.values() for k, v in p.items())
+assert all(BY_KEY[k].default == v for k, v in QUALITY_PRESETS[DEFAULT_QUALITY].items()), \
+    "the table's defaults are the default preset's values"
 
 
 def group(name: str, ui_only: bool = False) -> tuple[Param, ...]:
@@ -385,7 +417,7 @@ def param_record(*keys: str):
 RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
                "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face",
                "pbgi.glossy_below", "pbgi.asset_occlusion", "pbgi.asset_bounces",
-               "pbgi.asset_surfels")
+               "pbgi.asset_surfels", "pbgi.stop_factor")
 EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
 
 

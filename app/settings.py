@@ -9,7 +9,9 @@ Editing follows the Mitsuba pattern: whoever edits calls ``set``; the model reco
 changed*; the engine reads ``take_changes()`` once per frame and hands the set to its
 ``ChangeHandlers`` (napari's one-event-per-field model, dispatched once per frame): a BRDF slider
 only re-gathers the asset, an exposure change only re-tone-maps, a new cloud rebuilds the
-hierarchy. Non-settings parts of the session (files, capture cameras, asset transform,
+hierarchy. The quality preset (``pbgi.quality``) is kept consistent here: choosing one sets its
+values (each recorded as changed), and changing one of them by hand makes it "custom", so the
+UI only ever writes plain values. Non-settings parts of the session (files, capture cameras, asset transform,
 materials, the view camera) report their changes through the same change set under the keys in
 ``DOCUMENT_KEYS``.
 """
@@ -29,7 +31,9 @@ from app.errors import ScanlightError
 from app.io.limits import OBJECT_SCALE
 from app.io.schema import Fields, show
 from app.material import Material, material_from_dict
-from app.params import BY_KEY, PARAMS, REDO
+from app.params import BY_KEY, CUSTOM_QUALITY, PARAMS, QUALITY_KEYS, QUALITY_PRESETS, REDO
+
+QUALITY = "pbgi.quality"
 
 SESSION_VERSION = 1
 
@@ -62,9 +66,20 @@ class Settings:
         v = spec.clamp(value, source)
         if self._values[key] == v:
             return False
-        self._values[key] = v
-        self._changed.add(key)
+        self._store(key, v)
+        if key == QUALITY and v != CUSTOM_QUALITY:
+            for k, pv in QUALITY_PRESETS[v].items():
+                if self._values[k] != pv:
+                    self._store(k, pv)
+        elif key in QUALITY_KEYS:
+            q = self._values[QUALITY]
+            if q != CUSTOM_QUALITY and QUALITY_PRESETS[q][key] != v:
+                self._store(QUALITY, CUSTOM_QUALITY)
         return True
+
+    def _store(self, key: str, value) -> None:
+        self._values[key] = value
+        self._changed.add(key)
 
     def update(self, values: dict, source=None) -> None:
         for key, val in values.items():

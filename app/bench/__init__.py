@@ -8,4 +8,5 @@ BENCHES = {
     "expand": "app.bench.expand",
     "glossy": "app.bench.glossy",
     "asset": "app.bench.asset_light",
+    "tradeoff": "app.bench.tradeoff",
 }

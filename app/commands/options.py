@@ -17,7 +17,7 @@ import argparse
 import logging
 
 from app.errors import ScanlightError, UsageError
-from app.params import BY_KEY, EXPAND_KEYS, RENDER_KEYS, Param
+from app.params import BY_KEY, CUSTOM_QUALITY, EXPAND_KEYS, QUALITY_PRESETS, RENDER_KEYS, Param
 
 log = logging.getLogger(__name__)
 
@@ -34,7 +34,8 @@ RENAMED = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th", "hdr.neighb
 
 # command -> {flag: key}
 COMMAND_FLAGS: dict[str, dict[str, str]] = {
-    "render": _flags(RENDER_KEYS + ("pbgi.passes", "pbgi.differential", "view.exposure")),
+    "render": _flags(("pbgi.quality",) + RENDER_KEYS + ("pbgi.render_scale", "pbgi.passes",
+                                                        "pbgi.differential", "view.exposure")),
     "expand": _flags(EXPAND_KEYS),
     "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha")),
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
@@ -136,6 +137,12 @@ def param_values(args, command: str) -> dict:
             out[key] = p.check(value, what=flag)
         except ScanlightError as err:
             raise UsageError(None, err.reason) from None
+    # --quality NAME: the preset's values for every setting not given by its own flag
+    quality = out.get("pbgi.quality", CUSTOM_QUALITY)
+    if quality != CUSTOM_QUALITY:
+        for key, value in QUALITY_PRESETS[quality].items():
+            if key in out and not hasattr(args, _dest(key)):
+                out[key] = value
     return out
 
 

@@ -114,7 +114,8 @@ class ClassicMode(MicroBufferMode):
     name = "classic"
 
     def __init__(self, ctx, params: RenderParams):
-        super().__init__(ctx, params, ClassicCut(ctx))
+        self.stop_factor = float(params.stop_factor)
+        super().__init__(ctx, params, ClassicCut(ctx, stop_factor=self.stop_factor))
 
     def fits(self, params: RenderParams) -> bool:
-        return True                   # no parameter is fixed at construction
+        return float(params.stop_factor) == self.stop_factor

@@ -144,15 +144,15 @@ class FarFieldShare(CutFinder):
 
     def __init__(self, ctx, tolerance: float = DEFAULT_TOLERANCE,
                  max_level: int = DEFAULT_MAX_LEVEL, max_cone: float = DEFAULT_MAX_CONE,
-                 share_fraction: float = 0.25):
+                 share_fraction: float = 0.25, stop_factor: float = 4.0):
         if not tolerance > 0:
             raise ValueError(f"parallax tolerance must be > 0, got {tolerance!r}")
         self.ctx = ctx
         self.tolerance, self.max_level = float(tolerance), int(max_level)
         self.max_cone = float(max_cone)
         self.share_fraction = float(share_fraction)
-        self.far = ClassicCut(ctx, defines={"SHARE_SPLIT": 1})
-        self.near = ClassicCut(ctx, defines={"SHARE_SPLIT": 2})
+        self.far = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 1})
+        self.near = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 2})
         self.merge = load_compute(ctx, "pbgi_share_merge.glsl")
         self.block_mb = MicroBuffers(ctx)
         self._bufs = []

@@ -36,19 +36,23 @@ class HybridMode(MicroBufferMode):
     """Hybrid PBGI. ``parallax_tolerance`` > 0: far-field sharing (FarFieldShare) - the far
     field walked once per block of receivers, the near field per receiver; 0: the paper's exact
     Hybrid (PairRefiner: parallel refinement above Omega_tr, per-receiver walks below; the same
-    cut as Classic). Both parameters are fixed at construction."""
+    cut as Classic). Both, and the node stop factor, are fixed at construction."""
 
     name = "hybrid"
 
     def __init__(self, ctx, params: RenderParams):
         self.omega_tr_factor = float(params.omega_tr_factor)
         self.parallax_tolerance = float(params.parallax_tolerance)
+        self.stop_factor = float(params.stop_factor)
         if self.parallax_tolerance > 0:
-            cut = FarFieldShare(ctx, tolerance=self.parallax_tolerance)
+            cut = FarFieldShare(ctx, tolerance=self.parallax_tolerance,
+                                stop_factor=self.stop_factor)
         else:
-            cut = PairRefiner(ctx, omega_tr_factor=self.omega_tr_factor)
+            cut = PairRefiner(ctx, omega_tr_factor=self.omega_tr_factor,
+                              stop_factor=self.stop_factor)
         super().__init__(ctx, params, cut)
 
     def fits(self, params: RenderParams) -> bool:
         return (float(params.omega_tr_factor) == self.omega_tr_factor
-                and float(params.parallax_tolerance) == self.parallax_tolerance)
+                and float(params.parallax_tolerance) == self.parallax_tolerance
+                and float(params.stop_factor) == self.stop_factor)

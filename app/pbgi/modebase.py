@@ -54,9 +54,9 @@ REFUSED = (AllocationError, MemoryError, moderngl.Error)
 
 @param_record(*RENDER_KEYS)
 class RenderParams:
-    """What one render takes: the ``pbgi.*`` rows of app/params.py named in RENDER_KEYS (mode,
-    microbuffer, omega_tr_factor, parallax_tolerance, memory_budget_mb, envmap_face), with the
-    table's defaults and ranges. ``validated()`` returns a checked copy or raises ScanlightError.
+    """What one render takes: the ``pbgi.*`` rows of app/params.py named in RENDER_KEYS, with
+    the table's defaults and ranges. ``validated()`` returns a checked copy or raises
+    ScanlightError.
     """
 
 

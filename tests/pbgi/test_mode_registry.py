@@ -7,6 +7,7 @@ import inspect
 import json
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from tests.support import scenes as S
@@ -56,6 +57,27 @@ def test_a_mode_is_re_created_only_when_a_construction_parameter_changes(furnace
     assert furnace.mode_for(RenderParams(mode="hybrid", parallax_tolerance=0.0,
                                          omega_tr_factor=8.0)) is not exact
     assert furnace.mode_for(RenderParams(mode="classic", microbuffer=8)) is classic
+
+
+@pytest.mark.parametrize("mode", ["classic", "mipmapped", "hybrid"])
+def test_the_node_stop_factor_reaches_the_cut(furnace, demo_relighter, mode):
+    """pbgi.stop_factor: a new cut finder with the factor, and 1 Omega refines further than the
+    paper's 4 Omega (more nodes visited per receiver) - in the demo room, where the cut is deep."""
+    four = furnace.mode_for(RenderParams(mode=mode, stop_factor=4.0))
+    one = furnace.mode_for(RenderParams(mode=mode, stop_factor=1.0))
+    assert one is not four and one.stop_factor == 1.0
+    from app.demo.room import default_views
+    cam = default_views(24, 24)["closeup"]
+    visits, images = {}, {}
+    for f in (4.0, 1.0):
+        demo_relighter.forget_microbuffers()
+        res = demo_relighter.render(cam, None, RenderParams(mode=mode, microbuffer=8,
+                                                            stop_factor=f))
+        assert res.stats.completed
+        visits[f], images[f] = res.stats.nodes_visited, res.image
+    assert np.abs(images[1.0] - images[4.0]).max() > 0        # another cut: the factor arrived
+    if mode == "classic":
+        assert visits[1.0] > 1.2 * visits[4.0], visits
 
 
 @pytest.mark.parametrize("mode", RENDER_MODES)

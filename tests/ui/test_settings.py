@@ -51,7 +51,8 @@ def test_change_set_records_only_real_changes():
     assert st.set("view.exposure", 1.5) is False          # same value: no change
     assert st.set("pbgi.mode", "envmap") is True
     st.mark("materials")
-    assert st.take_changes() == {"view.exposure", "pbgi.mode", "materials"}
+    # the mode is one of the quality preset's settings: the preset becomes "custom" with it
+    assert st.take_changes() == {"view.exposure", "pbgi.mode", "pbgi.quality", "materials"}
     assert st.take_changes() == frozenset()                # taken once
     st.reset("view.exposure")
     assert st.take_changes() == {"view.exposure"} and st["view.exposure"] == 0.0

@@ -11,12 +11,8 @@
 // Per viewport pixel p (GL orientation, row 0 at the bottom, every input uploaded that way):
 //   asset visible  <=> G-buffer covers p and the asset is not behind the room's splat depth;
 //   asset colour   =  the full-resolution GI layer when its taps are rendered, else the preview,
-//                     each through joint bilateral upsampling (Ritschel et al. 2009, Sec. 2.4):
-//                     bilinear weight x [tap is asset] x exp(-NORMAL_SHARPNESS (1 - n_p.n_q)) x
-//                     exp(-|z_p - z_q| / (DEPTH_TOLERANCE z_p)), q = the tap's centre in the
-//                     G-buffer (OFF_GUIDE_WEIGHT when q is off the asset);
-//                     taps whose bilinear weight is 0 are ignored; with no usable tap, the mean
-//                     of whichever of the four taps are asset (thin parts at low res);
+//                     each through joint bilateral upsampling (Ritschel et al. 2009, Sec. 2.4;
+//                     lib/joint_bilateral.glsl, shared with `scanlight render`'s gi_upsample.glsl);
 //   else           =  the room's splat colour, or the background where no splat landed.
 // Outputs: the linear composite (COMPOSITE_TEXEL, for EXR screenshots) and the display image
 // (RGBA8: radiance x 2^EV, tone mapped, sRGB encoded). u_raw shows room colours as they are (false
@@ -33,20 +29,11 @@
 #endif
 #include "gen/viewer_composite.glsl"
 #include "lib/tonemap.glsl"
+// jbu_upsample, with the weights of app/pbgi/upsample.py
+#include "lib/joint_bilateral.glsl"
 
 layout(local_size_x = VIEW_TILE, local_size_y = VIEW_TILE) in;
 
-// Weights of the joint bilateral upsampling, injected from app/ui/composite.py (defaults here
-// only so the file compiles on its own).
-#ifndef NORMAL_SHARPNESS
-#define NORMAL_SHARPNESS 8.0
-#endif
-#ifndef DEPTH_TOLERANCE
-#define DEPTH_TOLERANCE 0.05
-#endif
-#ifndef OFF_GUIDE_WEIGHT
-#define OFF_GUIDE_WEIGHT 0.05
-#endif
 // The asset wins ties with the room within ROOM_DEPTH_SCALE x + ROOM_DEPTH_BIAS (injected too).
 #ifndef ROOM_DEPTH_SCALE
 #define ROOM_DEPTH_SCALE 1.002
@@ -72,48 +59,6 @@ uniform vec3 u_background;     // linear radiance where nothing was splatted
 float linear_depth(float d) {
     float ndc = 2.0 * d - 1.0;
     return 2.0 * u_near * u_far / (u_far + u_near - ndc * (u_far - u_near));
-}
-
-// Joint bilateral upsampling of one GI image; returns (rgb, weight). pending: a tap that would
-// count has not been rendered yet.
-vec4 upsample(sampler2D tex, ivec2 lo, ivec2 p, vec3 n_p, float z_p, out bool pending) {
-    pending = false;
-    vec2 q = (vec2(p) + 0.5) * vec2(lo) / vec2(u_size) - 0.5;
-    ivec2 i0 = ivec2(floor(q));
-    vec2 f = q - vec2(i0);
-    vec3 acc = vec3(0.0);
-    float wsum = 0.0;
-    for (int dy = 0; dy < 2; ++dy) {
-        for (int dx = 0; dx < 2; ++dx) {
-            float wb = (dx == 0 ? 1.0 - f.x : f.x) * (dy == 0 ? 1.0 - f.y : f.y);
-            if (wb <= 0.0) continue;
-            ivec2 t = clamp(i0 + ivec2(dx, dy), ivec2(0), lo - 1);
-            GiTexel s = gi_at(tex, t);
-            if (s.status < 0.0) { pending = true; continue; }
-            if (s.status < 0.5) continue;
-            ivec2 g = clamp(ivec2((vec2(t) + 0.5) * vec2(u_size) / vec2(lo)), ivec2(0), u_size - 1);
-            GuideTexel gq = guide_at(g);
-            float w = wb;
-            if (gq.depth > 0.0) {
-                w *= exp(-NORMAL_SHARPNESS * (1.0 - clamp(dot(n_p, gq.normal), -1.0, 1.0)));
-                w *= exp(-abs(gq.depth - z_p) / (DEPTH_TOLERANCE * z_p + 1e-4));
-            } else {
-                w *= OFF_GUIDE_WEIGHT;  // the tap's centre misses the rasterised asset: a weak vote
-            }
-            w = max(w, 1e-6 * wb);
-            acc += w * s.radiance;
-            wsum += w;
-        }
-    }
-    if (wsum > 0.0 || pending) return vec4(acc, wsum);
-    // Fallback (silhouette thinner than a low-resolution pixel): the mean of the asset taps
-    // among the four, whatever their bilinear weight.
-    for (int k = 0; k < 4; ++k) {
-        ivec2 t = clamp(i0 + ivec2(k & 1, k >> 1), ivec2(0), lo - 1);
-        GiTexel s = gi_at(tex, t);
-        if (s.status >= 0.5) { acc += s.radiance; wsum += 1.0; }
-    }
-    return vec4(acc, wsum);
 }
 
 vec3 display(vec3 linear_rgb, bool raw) {
@@ -145,10 +90,11 @@ void main() {
                 out_rgb = vec3(((p.x + p.y) / 6) % 2 == 0 ? 0.10 : 0.16);
             } else {
                 bool pending;
-                vec4 c = upsample(u_full, u_full_size, p, g.normal, g.depth, pending);
+                vec4 c = jbu_upsample(u_full, u_full_size, u_size, p, g.normal, g.depth, pending);
                 if (pending || c.w <= 0.0) {
                     bool unused;
-                    c = upsample(u_preview, u_preview_size, p, g.normal, g.depth, unused);
+                    c = jbu_upsample(u_preview, u_preview_size, u_size, p, g.normal, g.depth,
+                                     unused);
                 }
                 if (c.w > 0.0) {
                     asset = true;

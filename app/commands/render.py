@@ -6,7 +6,7 @@ baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
                      [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
                      [--background] [--budget-mb 1024] [--omega-tr-factor 32]
                      [--parallax-tolerance 1] [--envmap-face 128] [--glossy-below 0.5]
-                     [--passes 1]
+                     [--passes 1] [--quality preview|balanced|final] [--render-scale 1]
 
 The rendering options and their defaults are the parameter table's (app/params.py, the same as
 the viewer's; app/commands/options.py maps the flags).
@@ -21,7 +21,11 @@ with ``--background``, the max of the object's and the splats' coverage).
 asset, background, shadow, indirect, channels ``<layer>.R/G/B/A``, premultiplied linear. ``--passes N`` averages N renders
 whose pixels sample N points inside each pixel (app/pbgi/gbuffer.py: pass_jitter), so edges and
 mirror images are anti-aliased and the glossy lobes' jitter averages out; the radiance is then
-premultiplied by the covered fraction (alpha). ``--material`` overrides every
+premultiplied by the covered fraction (alpha). ``--render-scale S`` relights the asset at S of
+the resolution and brings it back with the viewer's joint bilateral upsampling, guided by the
+asset's full-resolution G-buffer (app/pbgi/upsample.py); alpha stays the full-resolution
+coverage. ``--quality NAME`` sets the preset's values (app/params.py: QUALITY_PRESETS), explicit
+flags winning. ``--material`` overrides every
 material of the asset; without it the asset's own (glTF/MTL) materials are used.
 """
 
@@ -86,6 +90,7 @@ def run(args) -> int:
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
+    from app.pbgi.upsample import render_upsampled
 
     values = _check_args(args)
     check_outputs({"--cloud": args.cloud, "--object": args.object, "--material": args.material,
@@ -107,9 +112,10 @@ def run(args) -> int:
     r.set_asset(mesh)
     params = RenderParams.from_settings(values)
     passes = int(values["pbgi.passes"])
-    res = r.render_passes(camera, materials, params, passes,
-                          progress=(lambda k, n: log.info("pass %d/%d", k, n)) if passes > 1
-                          else None)
+    scale = float(values["pbgi.render_scale"])
+    res = render_upsampled(r, camera, materials, params, passes, scale,
+                           progress=(lambda k, n: log.info("pass %d/%d", k, n)) if passes > 1
+                           else None)
     img = res.image
     st = res.stats
     if not st.completed:
@@ -129,7 +135,7 @@ def run(args) -> int:
         rgba = over(img, r.background(camera, diff))
     layers = None
     if args.layers:
-        layers = render_layers(r, camera, materials, params, passes, img, diff)
+        layers = render_layers(r, camera, materials, params, passes, img, diff, scale)
 
     stats_diff = None if diff is None else {"points": int(len(diff.index)),
                                             "seconds": round(diff.seconds, 3)}
@@ -156,7 +162,8 @@ def run(args) -> int:
             from app.io.exr import write_exr_layers
             write_exr_layers(outs.temp("--layers"), layers)
     print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}"
-          + (f", {passes} passes" if passes > 1 else "") + ") in "
+          + (f", {passes} passes" if passes > 1 else "")
+          + (f", GI at {scale:g} of the resolution" if scale < 1 else "") + ") in "
           f"{st.ms:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))
     return 0
 
@@ -171,7 +178,7 @@ def over(front: np.ndarray, back: np.ndarray) -> np.ndarray:
 
 
 def render_layers(r, camera, materials, params, passes: int, asset: np.ndarray,
-                  diff) -> dict:
+                  diff, scale: float = 1.0) -> dict:
     """The compositing layers (premultiplied RGBA, linear; see the module docstring):
     beauty = asset over the background with the asset's shadow; asset = the relit asset alone
     (alpha = coverage); background = the scan's splats as scanned; shadow = what the asset
@@ -186,7 +193,9 @@ def render_layers(r, camera, materials, params, passes: int, asset: np.ndarray,
     indirect = np.zeros_like(asset)
     indirect[..., 3] = asset[..., 3]
     if params.asset_occlusion and params.asset_bounces > 0 and params.mode != "envmap":
-        dark = r.render_passes(camera, materials, replace(params, asset_bounces=0), passes)
+        from app.pbgi.upsample import render_upsampled
+        dark = render_upsampled(r, camera, materials, replace(params, asset_bounces=0), passes,
+                                scale)
         indirect[..., :3] = asset[..., :3] - dark.image[..., :3]
     return {"beauty": over(asset, lit), "asset": asset, "background": plate,
             "shadow": shadow, "indirect": indirect}

@@ -120,6 +120,11 @@ class RenderStats:
     mb_asset: float = 0.0             # the joined tree's records and node textures
     ms: float = 0.0                   # the whole render (every pass)
     passes: int = 1                   # passes averaged (Relighter.render_passes)
+    render_scale: float = 1.0         # GI rendered at this fraction of the output resolution
+    out_width: int | None = None      # the output's size when render_scale < 1 (width/height:
+    out_height: int | None = None     # the low-resolution render's)
+    ms_upsample: float = 0.0          # the guide G-buffers and the upsampling (inside ``ms``)
+    upsample_unfilled: int = 0        # asset pixels no low-resolution sample reached (black)
     mb: float = 0.0                   # GPU memory: the larger of the G-buffer and the rest
     nonfinite_pixels: int = 0         # pixels that came out NaN or Inf (set to 0)
     gather_cut_short: int = 0         # pixels whose gather stopped early

@@ -43,6 +43,8 @@ GENERATED_INCLUDES = {
     "gen/splat.glsl": "app.render.gpu_layout:splat_glsl",
     "gen/viewer_gbuffer.glsl": "app.render.gpu_layout:gbuffer_glsl",
     "gen/viewer_composite.glsl": "app.render.gpu_layout:composite_glsl",
+    "gen/joint_bilateral.glsl": "app.pbgi.upsample:weights_glsl",
+    "gen/gi_upsample.glsl": "app.pbgi.upsample:upsample_glsl",
 }
 
 

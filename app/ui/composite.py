@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+# the joint bilateral weights are app/pbgi/upsample.py's (shared with `render --render-scale`)
+from app.pbgi.upsample import DEPTH_TOLERANCE, NORMAL_SHARPNESS, OFF_GUIDE_WEIGHT  # noqa: F401
 from app.render.gpu_layout import COMPOSITE_TEXEL, GI_TEXEL, GUIDE_TEXEL, ROOM_TEXEL
 
 _RGB = GI_TEXEL.columns("radiance")          # GI texel: radiance; status: 1 asset, < 0 pending
@@ -17,10 +19,6 @@ _STATUS = GI_TEXEL.index("status")
 _NORMAL = GUIDE_TEXEL.columns("normal")      # G-buffer texel: normal, depth (0: no asset)
 _DEPTH = GUIDE_TEXEL.index("depth")
 
-NORMAL_SHARPNESS = 8.0       # exp(-8 (1 - cos)): a 30 degree crease keeps e^-1.07 = 34% weight
-DEPTH_TOLERANCE = 0.05       # relative: taps 5% of the distance apart get e^-1 weight (2%
-#                              made curved surfaces at grazing angles blocky at 1/4 resolution)
-OFF_GUIDE_WEIGHT = 0.05      # a tap whose centre misses the rasterised asset
 ROOM_DEPTH_SLACK = (1.002, 1e-3)  # the asset wins ties with the room within 0.2% + 1 mm
 
 
@@ -62,17 +60,17 @@ def upsample(lo_img: np.ndarray, gbuf: np.ndarray, size: tuple[int, int]):
             wt = np.maximum(wt, 1e-6 * wb) * use
             acc += wt[..., None] * s[..., _RGB]
             wsum += wt
-    # Fallback: no usable tap and nothing pending -> mean of asset taps in the 4x4 window.
+    # Fallback: no usable tap and nothing pending -> mean of the asset taps among the four
+    # (lib/joint_bilateral.glsl), whatever their bilinear weight.
     fb = (wsum <= 0) & ~pending
     if fb.any():
         facc = np.zeros((H, W, 3))
         fcnt = np.zeros((H, W))
-        for dy in range(-1, 3):
-            for dx in range(-1, 3):
-                tx, ty = ix + dx, iy + dy
-                ok = (tx >= 0) & (ty >= 0) & (tx < w) & (ty < h)
-                s = lo_img[np.clip(ty, 0, h - 1), np.clip(tx, 0, w - 1)].astype(np.float64)
-                ok &= s[..., _STATUS] >= 0.5
+        for dy in (0, 1):
+            for dx in (0, 1):
+                s = lo_img[np.clip(iy + dy, 0, h - 1), np.clip(ix + dx, 0, w - 1)]
+                s = s.astype(np.float64)
+                ok = s[..., _STATUS] >= 0.5
                 facc += ok[..., None] * s[..., _RGB]
                 fcnt += ok
         acc = np.where(fb[..., None], facc, acc)

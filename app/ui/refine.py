@@ -54,11 +54,11 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
 
 import numpy as np
 
 from app.camera import Camera
+from app.pbgi.upsample import scaled_camera
 from app.render.gpu_layout import GI_PENDING, GI_TEXEL
 
 CELL = 32                 # tile granularity before the cost per pixel is known
@@ -88,11 +88,6 @@ def time_left_words(seconds: float | None) -> str:
     if seconds < 90 * 60:
         return f"about {max(2, math.floor(seconds / 60 + 0.5))} min left"
     return f"about {math.floor(seconds / 3600 + 0.5)} h left"
-
-
-def scaled_camera(cam: Camera, scale: float) -> Camera:
-    return replace(cam, width=max(1, int(math.ceil(cam.width * scale))),
-                   height=max(1, int(math.ceil(cam.height * scale))))
 
 
 def screen_rect(cam: Camera, lo, hi, pad: int = 2) -> tuple[int, int, int, int] | None:

@@ -46,10 +46,8 @@ class ViewportRenderer:
         self.moderngl = moderngl
         self.ctx = ctx
         from app.ui import composite as twin
-        weights = {"NORMAL_SHARPNESS": repr(float(twin.NORMAL_SHARPNESS)),
-                   "DEPTH_TOLERANCE": repr(float(twin.DEPTH_TOLERANCE)),
-                   "OFF_GUIDE_WEIGHT": repr(float(twin.OFF_GUIDE_WEIGHT)),
-                   "ROOM_DEPTH_SCALE": repr(float(twin.ROOM_DEPTH_SLACK[0])),
+        # the upsampling's weights come from gen/joint_bilateral.glsl (app/pbgi/upsample.py)
+        weights = {"ROOM_DEPTH_SCALE": repr(float(twin.ROOM_DEPTH_SLACK[0])),
                    "ROOM_DEPTH_BIAS": repr(float(twin.ROOM_DEPTH_SLACK[1]))}
         self.room_cs = load_compute(ctx, "viewer_composite.glsl", weights)
         self.asset_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, ASSET_PASS=1))

@@ -78,6 +78,44 @@ def test_render_matches_the_api(inputs):
     assert 0 < cli[..., 3].sum() < cli[..., 3].size and np.array_equal(cli[..., 3], api[..., 3])
 
 
+def test_render_scale_renders_the_gi_smaller_and_upsamples_it(inputs, capsys):
+    """--render-scale 0.5 writes what app/pbgi/upsample.py computes (the GI at half resolution,
+    joint bilateral upsampled), at the full size with the full-resolution coverage, and says so
+    in the stats and on stdout; --quality preview brings its scale with it."""
+    from app.camera import load_camera
+    from app.cloud import PointCloud
+    from app.io.formats import load_object, placed_mesh
+    from app.io.pointcloud import load_cloud
+    from app.material import load_material
+    from app.pbgi.renderer import Relighter, RenderParams
+    from app.pbgi.upsample import render_upsampled
+    d = inputs
+    assert main(_args(d, "--microbuffer", "8", "--render-scale", "0.5", "--size", "32x24",
+                      "--stats", str(d / "half.json"))) == 0
+    assert "GI at 0.5 of the resolution" in capsys.readouterr().out
+    cli = read_exr_layers(d / "out.exr")[""]
+    stats = json.loads((d / "half.json").read_text())
+    assert (stats["render_scale"], stats["width"], stats["out_width"]) == (0.5, 16, 32)
+    r = Relighter()
+    c = load_cloud(d / "room.ply")
+    r.set_cloud(PointCloud(c.positions, c.normals, c.colors, hdr=True))
+    r.set_asset(placed_mesh(load_object(d / "obj.json")))
+    cam = load_camera(d / "cam.json")
+    from dataclasses import replace
+    cam = replace(cam, width=32, height=24)
+    api = render_upsampled(r, cam, [load_material(d / "mat.json")], RenderParams(microbuffer=8),
+                           1, 0.5).image
+    full = r.render(cam, [load_material(d / "mat.json")], RenderParams(microbuffer=8)).image
+    assert cli.shape == api.shape == (24, 32, 4)
+    assert np.allclose(cli, api, rtol=1e-5, atol=1e-6)
+    assert np.array_equal(cli[..., 3], full[..., 3])
+    assert main(_args(d, "--quality", "preview", "--size", "32x24",
+                      "--stats", str(d / "preview.json"))) == 0
+    from app.params import QUALITY_PRESETS
+    assert json.loads((d / "preview.json").read_text())["render_scale"] == \
+        QUALITY_PRESETS["preview"]["pbgi.render_scale"]
+
+
 def test_render_passes_average_jittered_renders(inputs, capsys):
     """--passes N writes the mean of Relighter.render_passes (N jittered passes): its stats say
     so, the silhouette's pixels are partly covered (anti-aliased), and the background composite

@@ -228,6 +228,10 @@ PARAMS: tuple[Param, ...] = (
     _i("pbgi.asset_surfels", 8192, "Surfels the asset is sampled into (self-occlusion, bounce "
        "and its shadow on the scan); more resolve smaller creases.", 1024, 262144, "",
        label="asset surfels", redo="gi"),
+    _b("pbgi.shader_variants", True, "The final gather compiled for the material features in "
+       "use: no subsurface, anisotropy, sheen or clearcoat code when every material has that "
+       "parameter at 0 (one program per feature set, cached); off: one program with all of "
+       "them. The same image either way.", label="shader variants", redo="gi", ui=False),
     _b("pbgi.differential", True, "Differential rendering: the scan's points near the asset get "
        "its shadow and bounce (gathered with and without the asset, times the points' estimated "
        "albedo) in the background composite.", label="shadow on the scan", redo="gi"),
@@ -417,7 +421,7 @@ def param_record(*keys: str):
 RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
                "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face",
                "pbgi.glossy_below", "pbgi.asset_occlusion", "pbgi.asset_bounces",
-               "pbgi.asset_surfels", "pbgi.stop_factor")
+               "pbgi.asset_surfels", "pbgi.stop_factor", "pbgi.shader_variants")
 EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
 
 

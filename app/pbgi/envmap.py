@@ -75,7 +75,8 @@ class EnvmapMode(RenderMode):
         self.ctx.finish()
         tg = time.perf_counter()
         frame.gather.run(frame.receivers, frame.materials, frame.output, 0, frame.count, frame.m,
-                         frame.camera_rel, env=env, lobe=frame.lobe)
+                         frame.camera_rel, env=env, lobe=frame.lobe,
+                         absent=frame.absent_features)
         self.ctx.finish()
         stats.ms_gather = (time.perf_counter() - tg) * 1e3
         stats.envmap_face = env.face_size

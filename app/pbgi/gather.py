@@ -14,14 +14,28 @@ from app.pbgi.microbuffer import flux_texture, table_texture
 from app.render.programs import load_compute
 
 
+# Material parameters whose BRDF terms a gather variant can leave out (shaders/lib/principled.glsl:
+# PRINCIPLED_NO_<NAME>) when every material it shades has them at 0.
+FEATURES = {"subsurface": "SUBSURFACE", "anisotropic": "ANISOTROPY", "sheen": "SHEEN",
+            "clearcoat": "CLEARCOAT"}
+
+
+def absent_features(materials) -> tuple[str, ...]:
+    """The FEATURES no material of ``materials`` uses (their parameter is 0 in every one): the
+    BRDF code the gather may compile out. These parameters are plain factors (no textures,
+    app/pbgi/gpu_layout.py: TEXTURED_PARAMS), so the material list decides exactly."""
+    return tuple(sorted(tag for name, tag in FEATURES.items()
+                        if all(float(getattr(m, name)) == 0.0 for m in materials)))
+
+
 class Gather:
     def __init__(self, ctx):
         self.ctx = ctx
         self._progs = {}
 
     def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False,
-              irradiance: bool = False):
-        key = (cubemap, frames, lobe, irradiance)
+              irradiance: bool = False, absent: tuple = ()):
+        key = (cubemap, frames, lobe, irradiance, tuple(absent))
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
             if frames:
@@ -30,12 +44,15 @@ class Gather:
                 defines["LOBE_BUFFER"] = 1
             if irradiance:
                 defines["IRRADIANCE"] = 1
+            for tag in absent:
+                defines[f"PRINCIPLED_NO_{tag}"] = 1
             self._progs[key] = load_compute(self.ctx, "pbgi_gather.glsl", defines=defines or None)
         return self._progs[key]
 
     def run(self, receivers, materials, output, first: int, count: int, m: int,
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
-            lobe=None, lobe_buffers=None, irradiance: bool = False) -> None:
+            lobe=None, lobe_buffers=None, irradiance: bool = False,
+            absent: tuple = ()) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
@@ -44,10 +61,13 @@ class Gather:
         gives every receiver of a block the block's frame). ``lobe``: the LobeSettings of the
         glossy receivers' lobe micro-buffers (``lobe_buffers``, filled for this batch; with
         ``env`` the lobe directions read the cube map instead; app/pbgi/lobe.py).
-        ``irradiance``: a white Lambertian BRDF for every receiver (E / pi; no lobes)."""
+        ``irradiance``: a white Lambertian BRDF for every receiver (E / pi; no lobes).
+        ``absent``: BRDF features no material of the table uses (``absent_features``): a
+        variant without their code, compiled once per feature set."""
         if irradiance and lobe is not None:
             raise ValueError("an irradiance gather has no lobe micro-buffers")
-        prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance)
+        prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
+                          () if irradiance else tuple(absent))
         if lobe is not None:
             if env is None:
                 lobe_buffers.bind()

@@ -90,6 +90,8 @@ class Frame:
     lobe_buffers: Any = None          # the Relighter's LobeBuffers (filled per batch)
     leaf_radius: float = 0.0          # the scan's surface disc radius (lobe.surface_radius)
     irradiance: bool = False          # gather E / pi (white Lambertian), not the material
+    absent_features: tuple = ()       # BRDF features no material uses (gather.absent_features):
+                                      # the gather's variant leaves their code out
 
     @property
     def m(self) -> int:
@@ -272,7 +274,7 @@ class MicroBufferMode(RenderMode):
             frame.gather.run(frame.receivers, frame.materials, frame.output, first, count, m,
                              frame.camera_rel, mb=held.buffers, nodes=frame.nodes, frames=frames,
                              lobe=frame.lobe, lobe_buffers=frame.lobe_buffers,
-                             irradiance=frame.irradiance)
+                             irradiance=frame.irradiance, absent=frame.absent_features)
             ctx.finish()
             t_gather += time.perf_counter() - tg
             t_cut += tl - tc

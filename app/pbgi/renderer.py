@@ -291,6 +291,7 @@ class Relighter:
         tile = (x0, y0, w, h)
         m = int(params.microbuffer)
         ctx = self.ctx
+        from app.pbgi.gather import absent_features
         from app.pbgi.gbuffer import material_table, pass_jitter
 
         # the asset's surfels in the tree: built (and bounced) once per asset, cloud and
@@ -343,6 +344,7 @@ class Relighter:
             if self._lobe is None:
                 self._lobe = LobeBuffers(ctx)
             stats.lobe_receivers = True
+        stats.absent_features = absent_features(materials) if params.shader_variants else ()
         try:
             frame = Frame(params=params, receivers=bufs["receivers"],
                           materials=bufs["materials"], output=bufs["output"], count=n,
@@ -350,7 +352,8 @@ class Relighter:
                           nodes=nodes, cell_size=self.hierarchy.cell_size,
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
-                          leaf_radius=self.leaf_radius if lobe is not None else 0.0)
+                          leaf_radius=self.leaf_radius if lobe is not None else 0.0,
+                          absent_features=stats.absent_features)
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes

@@ -120,6 +120,8 @@ class RenderStats:
     mb_asset: float = 0.0             # the joined tree's records and node textures
     ms: float = 0.0                   # the whole render (every pass)
     passes: int = 1                   # passes averaged (Relighter.render_passes)
+    absent_features: tuple = ()       # BRDF features the gather variant left out (no material
+                                      # uses them; pbgi.shader_variants)
     render_scale: float = 1.0         # GI rendered at this fraction of the output resolution
     out_width: int | None = None      # the output's size when render_scale < 1 (width/height:
     out_height: int | None = None     # the low-resolution render's)

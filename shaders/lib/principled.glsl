@@ -17,6 +17,11 @@
 //   explorer; Schlick weights clamp 1 - cos to [0, 1]; the subsurface term's 1 / (n.L + n.V)
 //   uses max(n.L + n.V, 1e-6). GTR1's 1 - (n.h)^2 is computed as |n x h|^2 (float32
 //   cancellation at gloss 1 would otherwise cost ~6% of the clearcoat peak).
+// - Feature variants (app/pbgi/gather.py: material_features): a program may define
+//   PRINCIPLED_NO_SUBSURFACE, PRINCIPLED_NO_ANISOTROPY, PRINCIPLED_NO_SHEEN and
+//   PRINCIPLED_NO_CLEARCOAT when every material it shades has that parameter at 0; the lobes
+//   below then skip that term's code (llvmpipe pays for untaken branches), and the result is
+//   the same up to rounding (the isotropic GGX is the anisotropic one with ax = ay).
 // - Not energy conserving by construction (Burley's model): the diffuse retro-reflection can
 //   exceed albedo 1 at high roughness, and sheen and clearcoat are added on top of the base
 //   layer. Reciprocal: f(L, V) = f(V, L) for every term.
@@ -153,21 +158,39 @@ void principled_lobes_prepared(PrincipledPrepared q, vec3 L, out vec3 base, out 
     float fl = schlick_weight(n_dot_l), fv = q.fv;
     float fd90 = 0.5 + 2.0 * l_dot_h * l_dot_h * q.roughness;
     float fd = mix(1.0, fd90, fl) * mix(1.0, fd90, fv);
+#ifdef PRINCIPLED_NO_SUBSURFACE
+    float diffuse = fd;
+#else
     float fss90 = l_dot_h * l_dot_h * q.roughness;
     float fss = mix(1.0, fss90, fl) * mix(1.0, fss90, fv);
     float ss = 1.25 * (fss * (1.0 / max(n_dot_l + n_dot_v, 1e-6) - 0.5) + 0.5);
+    float diffuse = mix(fd, ss, q.subsurface);
+#endif
+#ifdef PRINCIPLED_NO_ANISOTROPY
+    // GTR2 with ax = ay: a^2 / (pi (sin^2 + a^2 cos^2)^2), sin^2 = |n x h|^2 (no cancellation)
+    vec3 nxh_s = cross(N, H);
+    float a2 = q.ax * q.ax, t = dot(nxh_s, nxh_s) + a2 * n_dot_h * n_dot_h;
+    float ds = a2 / (PI * t * t);
+    float gs = principled_smith_ggx(n_dot_l, q.ax) * q.gs_v;
+#else
     float ds = principled_gtr2_aniso(n_dot_h, dot(H, q.X), dot(H, q.Y), q.ax, q.ay);
+    float gs = principled_smith_ggx_aniso(n_dot_l, dot(L, q.X), dot(L, q.Y), q.ax, q.ay) * q.gs_v;
+#endif
     float fh = schlick_weight(l_dot_h);
     vec3 fs = mix(q.spec0, vec3(1.0), fh);
-    float gs = principled_smith_ggx_aniso(n_dot_l, dot(L, q.X), dot(L, q.Y), q.ax, q.ay) * q.gs_v;
-    vec3 f_sheen = fh * q.sheen_w;
+#ifdef PRINCIPLED_NO_SHEEN
+    base = INV_PI * diffuse * q.base * (1.0 - q.metallic);
+#else
+    base = (INV_PI * diffuse * q.base + fh * q.sheen_w) * (1.0 - q.metallic);
+#endif
+    spec = gs * ds * fs;
+#ifndef PRINCIPLED_NO_CLEARCOAT
     vec3 nxh = cross(N, H);
     float dr = principled_gtr1(n_dot_h, dot(nxh, nxh), q.cc_alpha);
     float fr = mix(0.04, 1.0, fh);
     float gr = principled_smith_ggx(n_dot_l, 0.25) * q.gr_v;
-    base = (INV_PI * mix(fd, ss, q.subsurface) * q.base + f_sheen) * (1.0 - q.metallic);
-    spec = gs * ds * fs;
     coat = vec3(0.25 * q.clearcoat * gr * fr * dr);
+#endif
 }
 
 vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {

@@ -228,6 +228,12 @@ PARAMS: tuple[Param, ...] = (
     _i("pbgi.asset_surfels", 8192, "Surfels the asset is sampled into (self-occlusion, bounce "
        "and its shadow on the scan); more resolve smaller creases.", 1024, 262144, "",
        label="asset surfels", redo="gi"),
+    _f("pbgi.envmap_beyond", 4.0, "Clearance (distance from the asset to the nearest scan point, "
+       "in asset radii) from which Classic, Mipmapped and Hybrid hand the frame to the "
+       "environment map: far from every surface the room looks the same from all of the asset. "
+       "Only for rough materials and an asset that cannot shadow itself (convex, or asset "
+       "self-occlusion off); 0 = never.", 0.0, 1000.0, "x radius", label="envmap beyond",
+       redo="gi", ui=False),
     _b("pbgi.shader_variants", True, "The final gather compiled for the material features in "
        "use: no subsurface, anisotropy, sheen or clearcoat code when every material has that "
        "parameter at 0 (one program per feature set, cached); off: one program with all of "
@@ -421,7 +427,8 @@ def param_record(*keys: str):
 RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
                "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face",
                "pbgi.glossy_below", "pbgi.asset_occlusion", "pbgi.asset_bounces",
-               "pbgi.asset_surfels", "pbgi.stop_factor", "pbgi.shader_variants")
+               "pbgi.asset_surfels", "pbgi.stop_factor", "pbgi.shader_variants",
+               "pbgi.envmap_beyond")
 EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
 
 

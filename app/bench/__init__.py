@@ -9,4 +9,5 @@ BENCHES = {
     "glossy": "app.bench.glossy",
     "asset": "app.bench.asset_light",
     "tradeoff": "app.bench.tradeoff",
+    "nearfield": "app.bench.nearfield",
 }

@@ -93,6 +93,8 @@ class Relighter:
         self._geo_key = None               # the cloud's geometry fingerprint
         self._asset_scene = None           # AssetScene, made on the first render with the asset
         self._splat_colors = None          # what the splats show: None = the scan's colours
+        self._clearance = None             # ((geometry, asset version), nearfield.Clearance)
+        self._kdtree = None                # (geometry key, cKDTree of the scan's points)
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -154,6 +156,20 @@ class Relighter:
         if self._env is not None:
             self._env.release()
             self._env, self._env_key = None, None
+
+    def clearance(self):
+        """The asset's clearance in the scan (app/pbgi/nearfield.py), computed once per cloud
+        geometry and asset."""
+        from scipy.spatial import cKDTree
+
+        from app.pbgi.nearfield import clearance
+        key = (self._geo_key, self._asset_version)
+        if self._clearance is None or self._clearance[0] != key:
+            if self._kdtree is None or self._kdtree[0] != self._geo_key:
+                self._kdtree = (self._geo_key, cKDTree(np.asarray(self.cloud.positions,
+                                                                  np.float64)))
+            self._clearance = (key, clearance(None, self.mesh, self._kdtree[1]))
+        return self._clearance[1]
 
     @property
     def origin(self) -> np.ndarray:
@@ -284,6 +300,12 @@ class Relighter:
         if len(materials) < len(self.mesh.materials):
             raise ScanlightError(None, f"the asset has {len(self.mesh.materials)} materials, "
                                        f"got {len(materials)}")
+        asked, clear = params.mode, None
+        if params.mode != "envmap" and params.envmap_beyond > 0:
+            from app.pbgi.nearfield import near_field_needed
+            clear = self.clearance()
+            if near_field_needed(params, materials, clear) is None:
+                params = replace(params, mode="envmap")
         W, H = camera.width, camera.height
         x0, y0, w, h = (int(v) for v in (tile if tile is not None else (0, 0, W, H)))
         if w < 1 or h < 1 or x0 < 0 or y0 < 0 or x0 + w > W or y0 + h > H:
@@ -317,6 +339,10 @@ class Relighter:
                             bsh_mb=(self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
                             micropixels=n * m * m, entries=n * entries(m),
                             ms_gbuffer=(t1 - t0) * 1e3)
+        if clear is not None:
+            stats.clearance = clear.ratio
+            if params.mode != asked:
+                stats.envmap_instead_of = asked
         if scene is not None:
             stats.asset_surfels = int(params.asset_surfels)
             stats.asset_bounces = int(params.asset_bounces)

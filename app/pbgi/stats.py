@@ -120,6 +120,9 @@ class RenderStats:
     mb_asset: float = 0.0             # the joined tree's records and node textures
     ms: float = 0.0                   # the whole render (every pass)
     passes: int = 1                   # passes averaged (Relighter.render_passes)
+    envmap_instead_of: str | None = None  # the mode asked for when the environment map took the
+                                      # frame (app/pbgi/nearfield.py: the asset is far from all)
+    clearance: float | None = None    # the asset's clearance in radii (when it was looked at)
     absent_features: tuple = ()       # BRDF features the gather variant left out (no material
                                       # uses them; pbgi.shader_variants)
     render_scale: float = 1.0         # GI rendered at this fraction of the output resolution

@@ -82,6 +82,21 @@ def test_cancel_within_a_second_in_a_thread():
     assert job.result is None
 
 
+def _niceness_work(request, progress, cancel):
+    import os
+    return os.nice(0)
+
+
+def test_a_worker_process_runs_below_its_owner():
+    """The viewer's frames keep the cores: the worker process is PROCESS_NICENESS nicer."""
+    import os
+
+    from app.jobs import PROCESS_NICENESS
+    job = start_job(_niceness_work, None, "process")
+    assert job.wait(timeout=60).state is JobState.DONE
+    assert job.result == min(os.nice(0) + PROCESS_NICENESS, 19)
+
+
 def test_process_mode_result_error_and_forced_cancel():
     job = start_job(_counting_work, {"steps": 3}, "process")
     st = job.wait(timeout=60)

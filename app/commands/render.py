@@ -161,7 +161,13 @@ def run(args) -> int:
         if layers is not None:
             from app.io.exr import write_exr_layers
             write_exr_layers(outs.temp("--layers"), layers)
-    print(f"rendered {camera.width}x{camera.height} ({params.mode}, M={params.microbuffer}"
+    if st.envmap_instead_of:
+        log.info("the environment map rendered this frame instead of %s: the asset is %.1f "
+                 "radii from every scan point (pbgi.envmap_beyond %g; 0 keeps the near field)",
+                 st.envmap_instead_of, st.clearance, params.envmap_beyond)
+    print(f"rendered {camera.width}x{camera.height} ({st.mode}"
+          + (f" for {st.envmap_instead_of}" if st.envmap_instead_of else "")
+          + f", M={params.microbuffer}"
           + (f", {passes} passes" if passes > 1 else "")
           + (f", GI at {scale:g} of the resolution" if scale < 1 else "") + ") in "
           f"{st.ms:.0f} ms: {args.out}" + (f", {args.png}" if args.png else ""))

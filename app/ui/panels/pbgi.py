@@ -22,7 +22,9 @@ def draw(ui) -> None:
     if st is None:
         lines = ["mode -", "nodes visited -", "extra memory -", "last tile -"]
     else:
-        lines = [f"mode {st.mode}   {st.ms:.1f} ms per pass",
+        handed = (f" (for {st.envmap_instead_of}: the asset is {st.clearance:.1f} radii "
+                  f"from the scan)" if st.envmap_instead_of else "")
+        lines = [f"mode {st.mode}   {st.ms:.1f} ms per pass" + handed,
                  f"nodes visited {int(st.nodes_visited):,}",
                  f"extra memory {st.mb:.1f} MB   M = {st.microbuffer}",
                  f"last tile {st.width} x {st.height} px"

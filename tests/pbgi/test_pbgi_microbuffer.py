@@ -13,7 +13,7 @@ from app.pbgi.brdf import orthonormal_basis
 from app.pbgi.classic import LOOP_LIMIT, ClassicCut
 from app.pbgi.microbuffer import (EMPTY, batch_size, entries, micro_pixel_table, omega_micro,
                                   rect_entries)
-from app.pbgi.renderer import Relighter, RenderParams
+from app.pbgi.renderer import RenderParams
 
 
 @pytest.mark.parametrize("m", [8, 16, 24, 32])
@@ -149,10 +149,7 @@ def test_llvmpipe_loop_limit_is_what_we_budget_for(ctx):
 
 @pytest.fixture(scope="module")
 def room():
-    r = Relighter()
-    r.set_cloud(S.box_room(0.1))
-    r.set_asset(S.sphere((0.0, 0.8, 0.0), 0.3, subdivisions=3))
-    return r
+    return S.sphere_in_box_room(0.1)
 
 
 CAM = S.look((0.3, 1.0, 0.9), (0.0, 0.8, 0.0), 12, 40)

@@ -9,7 +9,6 @@ import pytest
 from tests.stability.sane import MODES, assert_sane, params
 from tests.support import scenes as S
 from app.material import Material
-from app.pbgi.renderer import Relighter
 
 WHITE, BLACK, GREY = (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), (0.5, 0.5, 0.5)
 
@@ -47,10 +46,7 @@ MODE_AGREEMENT = 0.05
 
 @pytest.fixture(scope="module")
 def room():
-    r = Relighter()
-    r.set_cloud(S.box_room(0.1))
-    r.set_asset(S.sphere((0.0, 0.8, 0.0), 0.3, subdivisions=3))
-    return r
+    return S.sphere_in_box_room(0.1)
 
 
 CAM = S.look((0.3, 1.0, 0.9), (0.0, 0.8, 0.0), 32, 40)

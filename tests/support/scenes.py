@@ -72,6 +72,16 @@ def box_room(spacing: float = 0.05, light: float = LIGHT[3], seed: int = 0,
                       np.concatenate(col).astype(np.float32), hdr=True, source="test:box-room")
 
 
+def sphere_in_box_room(spacing: float = 0.1):
+    """A Relighter holding box_room(spacing) and a 0.3 m sphere at (0, 0.8, 0): the small scene
+    many tests light."""
+    from app.pbgi.renderer import Relighter
+    r = Relighter()
+    r.set_cloud(box_room(spacing))
+    r.set_asset(sphere((0.0, 0.8, 0.0), 0.3, subdivisions=3))
+    return r
+
+
 def local_spacing(positions, k: int = 4) -> np.ndarray:
     """Per point, the distance to its k-th neighbour: disc radii for the reference that follow
     the local sampling (a finer light panel gets smaller discs)."""

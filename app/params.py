@@ -166,7 +166,10 @@ RENDER_MODES = ("classic", "mipmapped", "hybrid", "envmap")   # app/pbgi/modes.p
 HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "banterle-pc")
 
 # Quality presets: named bundles of the settings that trade speed for accuracy, chosen from the
-# Pareto front that ``scanlight bench tradeoff`` measures (README, "Speed against accuracy").
+# Pareto front that ``scanlight bench tradeoff`` measures (README, "Speed against accuracy":
+# its suggest_presets picked these three from the full grid on both rooms and five materials -
+# preview the fastest within 2.5x the best error of every case, balanced within 1.5x, final
+# the least; re-run the bench when the renderer changes).
 # ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
 # below), so a fresh viewer and a command line without --quality get exactly that preset.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {

@@ -279,16 +279,22 @@ def mark_fronts(records: list[dict], metric: str = "rel_rmse_4x4") -> None:
             r["on_front"] = float(i in front)
 
 
-# error budgets of the presets: the worst material's 4x4-pooled relative RMSE, over rooms
-BUDGETS = {"preview": 0.25, "balanced": 0.12, "final": None}
+# Error budgets of the presets, relative: the worst over the measured cases (room x material)
+# of a setting's error / the least error any setting reached on that case. Absolute budgets
+# cannot work here: the near-mirror's error has a floor of about 18% in every setting (the
+# glossy issue's unmet target), so "within 12%" would leave no setting at all.
+BUDGETS = {"preview": 2.5, "balanced": 1.5, "final": None}
+# the settings app/params.py's QUALITY_PRESETS hold (circled on the plot)
+PRESET_SETTINGS = ("hybrid m=16 scale=1/2", "hybrid m=24 scale=1", "classic m=24 scale=1")
 
 
 def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rmse_4x4",
                     exclude_modes=("envmap",)) -> dict:
     """Per preset, the setting (measured on every room and material) with the least total time
-    whose worst error is within the preset's budget; budget None: the least worst error.
-    Returns {preset: {"setting", "ms" (mean over the cases), "worst_error", "errors"}}.
-    Records are flat here: case and metrics merged (``flat``)."""
+    whose worst excess (error over the case's best error, see BUDGETS) is within the preset's
+    budget; budget None: the least worst excess. Returns {preset: {"setting", "ms" (mean over
+    the cases), "worst_error", "worst_excess", "errors"}}. Records are flat here: case and
+    metrics merged (``flat``)."""
     by: dict = {}
     cases = {(r["room"], r["material"]) for r in records}
     for r in records:
@@ -296,17 +302,21 @@ def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rms
             continue
         by.setdefault(r["setting"], {})[(r["room"], r["material"])] = r
     full = {s: rs for s, rs in by.items() if set(rs) == cases}
+    if not full:
+        return {}
+    best = {k: max(min(rs[k][metric] for rs in full.values()), 1e-12) for k in cases}
     out = {}
     for name, budget in budgets.items():
-        scored = [(sum(r["ms"] for r in rs.values()), max(r[metric] for r in rs.values()), s)
+        scored = [(sum(r["ms"] for r in rs.values()),
+                   max(r[metric] / best[k] for k, r in rs.items()), s)
                   for s, rs in full.items()]
         ok = [c for c in scored if budget is None or c[1] <= budget]
         if not ok:
             continue
-        ms, worst, s = min(ok, key=(lambda c: (c[1], c[0])) if budget is None else
-                           (lambda c: (c[0], c[1])))
-        out[name] = {"setting": s, "ms": ms / len(cases),
-                     "worst_error": worst,
+        ms, excess, s = min(ok, key=(lambda c: (c[1], c[0])) if budget is None else
+                            (lambda c: (c[0], c[1])))
+        out[name] = {"setting": s, "ms": ms / len(cases), "worst_excess": excess,
+                     "worst_error": max(r[metric] for r in full[s].values()),
                      "errors": {f"{k[0]}/{k[1]}": full[s][k][metric] for k in sorted(full[s])}}
     return out
 
@@ -339,6 +349,7 @@ def write_plot(records: list[dict], path, metric: str = "rel_rmse_4x4") -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib import ticker
     rooms = sorted({r["room"] for r in records})
     mats = [m for m in MATERIALS if any(r["material"] == m for r in records)]
     fig, axes = plt.subplots(len(rooms), len(mats), figsize=(3.2 * len(mats), 3.0 * len(rooms)),
@@ -352,6 +363,11 @@ def write_plot(records: list[dict], path, metric: str = "rel_rmse_4x4") -> None:
                 if pts:
                     ax.scatter(*zip(*pts), s=12, c=colour, label=mode, alpha=0.8)
             front = sorted((r["ms"], 100 * r[metric]) for r in rs if r.get("on_front"))
+            # the presets' settings, circled
+            for r in rs:
+                if r["setting"] in PRESET_SETTINGS:
+                    ax.scatter([r["ms"]], [100 * r[metric]], s=60, facecolors="none",
+                               edgecolors="k", lw=0.8)
             if front:
                 ax.step(*zip(*front), where="post", c="k", lw=0.8)
             noise = [100 * r["ref_noise_4x4"] for r in rs]
@@ -359,6 +375,9 @@ def write_plot(records: list[dict], path, metric: str = "rel_rmse_4x4") -> None:
                 ax.axhline(max(noise), c="grey", ls=":", lw=0.8)
             ax.set_xscale("log")
             ax.set_yscale("log")
+            for axis in (ax.xaxis, ax.yaxis):       # plain numbers, no crowded minor labels
+                axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+                axis.set_minor_formatter(ticker.NullFormatter())
             ax.set_title(f"{room}: {mat}", fontsize=9)
             ax.tick_params(labelsize=7)
             if i == len(rooms) - 1:
@@ -459,5 +478,6 @@ def run(args) -> list[dict]:
     presets = suggest_presets(rows)
     for name, p in presets.items():
         print(f"suggested {name}: {p['setting']} ({p['ms']:.0f} ms per frame on average, worst "
-              f"{100 * p['worst_error']:.1f}% 4x4)")
+              f"{100 * p['worst_error']:.1f}% 4x4, at most {p['worst_excess']:.2f}x the best "
+              f"setting's error on each case)")
     return records

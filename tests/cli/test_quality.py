@@ -123,14 +123,19 @@ def test_fronts_and_presets_on_known_numbers():
     T.mark_fronts(rows)
     on = {(r["room"], r["material"], r["setting"]) for r in rows if r["on_front"]}
     assert ("a", "diffuse", "dominated") not in on and ("b", "glossy", "mid") in on
-    p = T.suggest_presets(rows, {"preview": 0.5, "balanced": 0.2, "final": None})
-    # worst error (glossy) 0.45 / 0.15 / 0.06: preview the fastest, balanced "mid",
-    # final the least error; envmap (excluded, and not measured on every case) never chosen
+    p = T.suggest_presets(rows, {"preview": 8.0, "balanced": 3.0, "final": None})
+    # error over the case's best ("slow"): 7.5x / 2.5x / 1x: preview the fastest, balanced
+    # "mid", final the least error; envmap (excluded, and not measured on every case) never
+    # chosen, though its one error is the least
     assert p["preview"]["setting"] == "fast"
     assert p["balanced"]["setting"] == "mid"
     assert p["final"]["setting"] == "slow"
+    assert p["balanced"]["worst_excess"] == pytest.approx(2.5)
     assert p["balanced"]["worst_error"] == pytest.approx(0.15)
     assert p["balanced"]["ms"] == pytest.approx(50.0)
+    # "mid" is 2.5x the best on its worst case: a 2x budget leaves only "slow" (the best is
+    # always within any budget >= 1)
+    assert T.suggest_presets(rows, {"balanced": 2.0})["balanced"]["setting"] == "slow"
 
 
 def test_csv_and_plot_outputs(tmp_path):

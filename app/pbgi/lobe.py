@@ -121,7 +121,8 @@ class LobeBuffers:
         if steps + splat_budget + list_cap >= LOOP_LIMIT:
             raise ValueError("steps + splat_budget must stay below llvmpipe's loop limit")
         self.ctx = ctx
-        self.prog = load_compute(ctx, "pbgi_lobe.glsl", defines={"LIST_CAP": int(list_cap)})
+        self.list_cap = int(list_cap)
+        self._progs = {}                 # absent BRDF features -> the walk's program variant
         self._clear = load_compute(ctx, "mb_clear.glsl")
         self.steps, self.splat_budget, self.max_rounds = int(steps), int(splat_budget), max_rounds
         self.image = None
@@ -157,8 +158,19 @@ class LobeBuffers:
     def bind(self) -> None:
         self.image.bind_to_image(IMAGE.LOBE, read=True, write=True)
 
+    def program(self, absent: tuple = ()):
+        """The walk compiled without the code of the BRDF features no material uses
+        (gather.absent_features; lib/lobe.glsl leaves the anisotropic stretch out)."""
+        key = tuple(absent)
+        if key not in self._progs:
+            defines = {"LIST_CAP": self.list_cap}
+            defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in key})
+            self._progs[key] = load_compute(self.ctx, "pbgi_lobe.glsl", defines=defines)
+        return self._progs[key]
+
     def fill(self, settings: LobeSettings, receivers, materials, first: int, count: int,
-             capacity: int, nodes, cell_size: float, camera_rel, leaf_radius: float) -> dict:
+             capacity: int, nodes, cell_size: float, camera_rel, leaf_radius: float,
+             absent: tuple = ()) -> dict:
         """Walk and ray cast the lobe micro-buffers of receivers [first, first + count);
         each point is a disc of ``leaf_radius`` (surface_radius of the cloud), so a leaf is a disc
         of its sphere's radius + leaf_radius - except the asset's surfels (nodes from
@@ -172,7 +184,7 @@ class LobeBuffers:
         self.counter.bind_to_storage_buffer(SSBO.COUNTERS)
         nodes.use()
         self.bind()
-        prog = self.prog
+        prog = self.program(absent)
         values = {"u_first": first, "u_count": count, "u_rings": settings.rings,
                   "u_sectors": settings.sectors, "u_pass": settings.pass_index,
                   "u_glossy_below": settings.glossy_below, "u_stop_factor": settings.stop_factor,

@@ -265,7 +265,8 @@ class MicroBufferMode(RenderMode):
             if frame.lobe is not None:
                 lobe_figures = frame.lobe_buffers.fill(
                     frame.lobe, frame.receivers, frame.materials, first, count, per, frame.nodes,
-                    frame.cell_size, frame.camera_rel, frame.leaf_radius)
+                    frame.cell_size, frame.camera_rel, frame.leaf_radius,
+                    absent=frame.absent_features)
                 ctx.finish()
                 stats.ms_lobe += (time.perf_counter() - tl) * 1e3
                 stats.lobe_incomplete += lobe_figures["incomplete"]

@@ -17,7 +17,11 @@
 // which is what the gather weights by and what the cut compares a node's solid angle with.
 // Outside the domain the specular lobe stays in the cosine micro-buffer: the two buffers split the
 // sphere of directions in h, so nothing is counted twice or lost. Two lobes of very different
-// widths (clearcoat over a glossy base) get a piece of the rings each (lobe_frame).
+// widths (clearcoat over a glossy base) get a piece of the rings each (lobe_frame). An
+// anisotropic specular lobe alone is mapped through GGX's slope stretch along the material's
+// tangent (lobe_frame_for): the rings and sectors above live in the stretched slope space, where
+// the lobe is isotropic, and a micro-pixel's solid angle in h is its slope area (which the
+// stretch keeps) times cos^3 of its true half-vector angle.
 //
 // Needs lib/common.glsl, lib/principled.glsl.
 #ifndef SCANLIGHT_LOBE_GLSL
@@ -38,6 +42,7 @@ struct LobeFrame {
     float uo0, uo1;  // the outer piece's u range, in its own u
     float tan2_split;  // tan^2(theta_h) where the inner piece ends (1e30: one piece)
     float tan2_max;    // the domain: tan^2(theta_h) below this
+    vec2 st;         // slope stretch (sx, sy), sx sy = 1: (1, 1) but for an anisotropic lobe
     float phi0;      // frame rotation (radians)
     uint seed;       // per receiver and pass
     uint rings, sectors;
@@ -63,6 +68,7 @@ LobeFrame lobe_frame(vec3 N, vec3 V, float aw, float amax, uint pixel, uint pass
     f.N = N;
     orthonormal_basis(N, f.T, f.B);
     f.V = V;
+    f.st = vec2(1.0);
     aw = max(aw, LOBE_MIN_ALPHA);
     amax = max(amax, aw);
     float d2 = LOBE_DOMAIN * LOBE_DOMAIN;
@@ -110,12 +116,43 @@ float lobe_spec_share(PrincipledPrepared q, float glossy_below) {
 }
 
 // The frame for those lobes: the warp follows the narrowest, the domain covers the widest.
+// An anisotropic specular lobe alone (no clearcoat in the buffer) is mapped through the slope
+// stretch of GGX: slopes m' = (sx m.x, sy m.y) along the material's tangent X and bitangent Y,
+// sx = ax / a_w, sy = ay / a_w, a_w = sqrt(ax ay); the stretch has determinant 1, so the
+// anisotropic lobe in m' is the isotropic lobe of a_w in m, and the rings and sectors of that
+// lobe put an equal share of the anisotropic lobe in every micro-pixel (an isotropic warp of an
+// anisotropic lobe left micro-pixels far wider than the lobe across it: fireflies).
 LobeFrame lobe_frame_for(PrincipledPrepared q, bvec2 terms, uint pixel, uint pass, uint rings,
                          uint sectors) {
     float aw = 1.0, amax = 0.0;
     if (terms.x) { aw = sqrt(q.ax * q.ay); amax = max(q.ax, q.ay); }
     if (terms.y) { aw = min(aw, q.cc_alpha); amax = max(amax, q.cc_alpha); }
+#ifdef PRINCIPLED_NO_ANISOTROPY
     return lobe_frame(q.N, q.V, aw, amax, pixel, pass, rings, sectors);
+#else
+    bool stretch = terms.x && !terms.y && abs(q.ax - q.ay) > 1e-3 * aw;
+    LobeFrame f = lobe_frame(q.N, q.V, aw, stretch ? aw : amax, pixel, pass, rings, sectors);
+    if (stretch) {
+        f.T = q.X;
+        f.B = q.Y;
+        f.st = vec2(q.ax, q.ay) / aw;
+    }
+    return f;
+#endif
+}
+
+// A program for materials without anisotropy (app/pbgi/gather.py: absent_features) leaves the
+// stretch's code out: llvmpipe pays for untaken branches (23% of a glossy frame here).
+#ifdef PRINCIPLED_NO_ANISOTROPY
+bool lobe_stretched(LobeFrame f) { return false; }
+#else
+bool lobe_stretched(LobeFrame f) { return f.st.x != 1.0 || f.st.y != 1.0; }
+#endif
+
+// The half-vector h (any length, above the surface) as its mapping's slope m (before the
+// stretch): m = (h.T / sx, h.B / sy) / h.N.
+vec2 lobe_slope(LobeFrame f, vec3 h) {
+    return vec2(dot(h, f.T), dot(h, f.B)) / (f.st * dot(h, f.N));
 }
 
 // Is incoming direction w (unit, world) inside the lobe micro-buffer's domain? Its lobes are
@@ -124,6 +161,10 @@ bool lobe_inside(LobeFrame f, vec3 w) {
     vec3 h = w + f.V;
     float hn = dot(h, f.N);
     if (hn <= 0.0) return false;
+    if (lobe_stretched(f)) {
+        vec2 m = lobe_slope(f, h);
+        return dot(m, m) < f.tan2_max;
+    }
     float h2 = dot(h, h);
     float tan2 = max(h2 - hn * hn, 0.0) / (hn * hn);
     return tan2 < f.tan2_max;
@@ -141,6 +182,14 @@ LobePiece lobe_piece(LobeFrame f, bool outer) {
 float lobe_omega_h(LobePiece p, float tan2, float dphi) {
     float one_u = 1.0 - tan2 / (p.a2 + tan2);
     return p.du * dphi * p.a2 / (2.0 * one_u * one_u * (1.0 + tan2) * sqrt(1.0 + tan2));
+}
+
+// The same through the stretch: the micro-pixel's area in slope space (the stretch keeps it)
+// at the mapping's tan^2 ``tan2``, times cos^3 of the true half-vector angle (tan^2 ``true2``):
+// d omega_h = d(slope area) cos^3 theta_h.
+float lobe_omega_h_stretched(LobePiece p, float tan2, float true2, float dphi) {
+    float one_u = 1.0 - tan2 / (p.a2 + tan2);
+    return p.du * dphi * p.a2 / (2.0 * one_u * one_u * (1.0 + true2) * sqrt(1.0 + true2));
 }
 
 // The ring of half-vector angle tan^2 (monotone in theta_h across both pieces).
@@ -163,19 +212,63 @@ void lobe_cell(LobeFrame f, uint k, out vec3 L, out float omega) {
     float u = p.u0 + (float(i - p.r0) + xi1) * p.du;
     float phi = f.phi0 + (float(j) + xi2) * dphi;
     float tan2 = p.a2 * u / (1.0 - u);
-    float c2 = 1.0 / (1.0 + tan2);                       // cos^2 theta_h
-    float ch = sqrt(c2), sh = sqrt(max(1.0 - c2, 0.0));
-    vec3 H = f.T * (sh * cos(phi)) + f.B * (sh * sin(phi)) + f.N * ch;
+    vec3 H;
+    float om_h;
+    if (lobe_stretched(f)) {
+        vec2 m = sqrt(tan2) * vec2(cos(phi), sin(phi)) * f.st;     // the true slope
+        H = normalize(f.T * m.x + f.B * m.y + f.N);
+        om_h = lobe_omega_h_stretched(p, tan2, dot(m, m), dphi);
+    } else {
+        float c2 = 1.0 / (1.0 + tan2);                   // cos^2 theta_h
+        float ch = sqrt(c2), sh = sqrt(max(1.0 - c2, 0.0));
+        H = f.T * (sh * cos(phi)) + f.B * (sh * sin(phi)) + f.N * ch;
+        om_h = lobe_omega_h(p, tan2, dphi);
+    }
     float vh = dot(f.V, H);
     L = 2.0 * vh * H - f.V;
-    omega = (vh > 0.0 && dot(L, f.N) > 0.0) ? 4.0 * vh * lobe_omega_h(p, tan2, dphi) : 0.0;
+    omega = (vh > 0.0 && dot(L, f.N) > 0.0) ? 4.0 * vh * om_h : 0.0;
+}
+
+// The band of polar angles th -/+ bh: its lowest angle ``lo`` and tan^2 of both ends (1e30 past
+// the horizon); false when it lies wholly outside the domain.
+bool lobe_band(LobeFrame f, float th, float bh, out float lo, out float tan2_lo,
+               out float tan2_hi) {
+    lo = max(th - bh, 0.0);
+    float hi = th + bh;
+    float tlo = tan(lo);
+    tan2_lo = lo >= 0.5 * PI ? 1e30 : tlo * tlo;
+    float thi = tan(min(hi, 0.5 * PI - 1e-4));
+    tan2_hi = hi >= 0.5 * PI ? 1e30 : thi * thi;
+    return tan2_lo < f.tan2_max;
+}
+
+// The sectors (first, count) a disc of angular radius ``bh`` covers around the mapping's polar
+// angle ``th`` (its lowest ``lo``) and azimuth ``phic`` (from phi0): every sector when the disc
+// reaches the pole.
+uvec2 lobe_sectors(LobeFrame f, float th, float lo, float bh, float phic, float dphi) {
+    uint s0 = 0u, ns = f.sectors;
+    float sth = sin(th);
+    if (lo > 0.0 && sin(bh) < sth) {
+        float half_w = asin(clamp(sin(bh) / sth, 0.0, 1.0));
+        float a = (phic - half_w) / dphi, c = (phic + half_w) / dphi;
+        float fa = floor(a);
+        uint cnt = uint(floor(c) - fa) + 1u;
+        if (cnt < f.sectors) {          // (GLSL's % is undefined for negative operands)
+            s0 = uint(int(fa) + 8 * int(f.sectors)) % f.sectors;
+            ns = cnt;
+        }
+    }
+    return uvec2(s0, ns);
 }
 
 // The micro-pixels a node may cover: node direction l (unit, world) with angular radius
 // b (sin_b, cos_b). Returns (ring0, ring1, sector0, sectors) packed 8 bits each, 0xFFFFFFFF when
 // the node lies outside the lobe's domain; ``omega_min`` = the smallest micro-pixel solid angle
 // (in L) it covers (the cut compares the node with it).
+uint lobe_rect_stretched(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min);
+
 uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min) {
+    if (lobe_stretched(f)) return lobe_rect_stretched(f, l, sin_b, cos_b, omega_min);
     vec3 s = l + f.V;
     float len = length(s);
     omega_min = 0.0;
@@ -192,12 +285,8 @@ uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_mi
     vec3 hc = s / len;
     float ch = dot(hc, f.N);
     float th = acos(clamp(ch, -1.0, 1.0));
-    float lo = max(th - bh, 0.0), hi = th + bh;
-    float tlo = tan(lo);
-    float tan2_lo = lo >= 0.5 * PI ? 1e30 : tlo * tlo;
-    if (tan2_lo >= f.tan2_max) return 0xFFFFFFFFu;     // outside the domain
-    float thi = tan(min(hi, 0.5 * PI - 1e-4));
-    float tan2_hi = hi >= 0.5 * PI ? 1e30 : thi * thi;
+    float lo, tan2_lo, tan2_hi;
+    if (!lobe_band(f, th, bh, lo, tan2_lo, tan2_hi)) return 0xFFFFFFFFu;   // outside
     uint r0 = lobe_ring(f, tan2_lo);
     uint r1 = lobe_ring(f, tan2_hi);
     bool outer = tan2_lo >= f.tan2_split;
@@ -205,20 +294,46 @@ uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_mi
     if (!outer && tan2_hi >= f.tan2_split)             // it reaches into the outer piece too
         om = min(om, lobe_omega_h(lobe_piece(f, true), f.tan2_split, dphi));
     omega_min = 4.0 * cos_d * om;
-    uint s0 = 0u, ns = f.sectors;
-    float sth = sin(th);
-    if (lo > 0.0 && sin(bh) < sth) {
-        float half_w = asin(clamp(sin(bh) / sth, 0.0, 1.0));
-        float phic = atan(dot(hc, f.B), dot(hc, f.T)) - f.phi0;
-        float a = (phic - half_w) / dphi, c = (phic + half_w) / dphi;
-        float fa = floor(a);
-        uint cnt = uint(floor(c) - fa) + 1u;
-        if (cnt < f.sectors) {          // (GLSL's % is undefined for negative operands)
-            s0 = uint(int(fa) + 8 * int(f.sectors)) % f.sectors;
-            ns = cnt;
-        }
+    uvec2 sec = lobe_sectors(f, th, lo, bh, atan(dot(hc, f.B), dot(hc, f.T)) - f.phi0, dphi);
+    return r0 | (r1 << 8u) | (sec.x << 16u) | (sec.y << 24u);
+}
+
+// lobe_rect through the stretch (one piece). The node's disc of angular radius bh in true h
+// maps to the mapping's space by h -> normalize(M h), M = diag(1 / sx, 1 / sy, 1), whose angular
+// magnification is at most smax / |M h| (smax = max(sx, sy), M's largest singular value), and
+// |M h| >= |M h_c| - smax bh over the disc (and >= 1 / smax, M's smallest): the rectangle covers
+// the disc's image. Its smallest micro-pixel: the least slope area (at the lowest ring) times
+// the least cos^3 (at the disc's largest true angle).
+uint lobe_rect_stretched(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min) {
+    vec3 s = l + f.V;
+    float len = length(s);
+    float cos_d = 0.5 * len;                            // V.h_c = l.h_c
+    float b = atan(sin_b, cos_b);
+    float den = 2.0 * cos_d - b;
+    uint full = (f.rings - 1u) << 8u | (f.sectors << 24u);
+    float dphi = TWO_PI / float(f.sectors);
+    float smax = max(f.st.x, f.st.y);
+    LobePiece p = lobe_piece(f, false);
+    if (den < 0.05) {                                   // the node spans the reflection's pole
+        omega_min = 4.0 * max(cos_d, 1e-3)
+                    * lobe_omega_h_stretched(p, 0.0, f.tan2_max * smax * smax, dphi);
+        return full;
     }
-    return r0 | (r1 << 8u) | (s0 << 16u) | (ns << 24u);
+    float bh = b / den;                                 // angular radius in true h (a bound)
+    vec3 hc = s / len;
+    vec3 q = vec3(dot(hc, f.T) / f.st.x, dot(hc, f.B) / f.st.y, dot(hc, f.N));
+    float ql = length(q);
+    float bm = min(bh * smax / max(ql - smax * bh, 1.0 / smax), PI);   // in the mapping
+    vec3 hm = q / ql;
+    float th = acos(clamp(hm.z, -1.0, 1.0));
+    float lo, tan2_lo, tan2_hi;
+    if (!lobe_band(f, th, bm, lo, tan2_lo, tan2_hi)) return 0xFFFFFFFFu;   // outside
+    uint r0 = lobe_ring(f, tan2_lo);
+    uint r1 = lobe_ring(f, tan2_hi);
+    float tt = tan(min(acos(clamp(dot(hc, f.N), -1.0, 1.0)) + bh, 0.5 * PI - 1e-4));
+    omega_min = 4.0 * cos_d * lobe_omega_h_stretched(p, tan2_lo, tt * tt, dphi);
+    uvec2 sec = lobe_sectors(f, th, lo, bm, atan(hm.y, hm.x) - f.phi0, dphi);
+    return r0 | (r1 << 8u) | (sec.x << 16u) | (sec.y << 24u);
 }
 
 uint lobe_rect_cells(uint r) { return (((r >> 8u) & 255u) - (r & 255u) + 1u) * (r >> 24u); }

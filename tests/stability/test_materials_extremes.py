@@ -60,17 +60,10 @@ def _classic(room, case):
     return _classic_mean[case]
 
 
-# Measured failures (M = 8), kept as strict xfails until fixed:
-KNOWN = {
-    # the lobe micro-buffer warps an anisotropic lobe isotropically (alpha = sqrt(ax ay),
-    # lib/lobe.glsl: lobe_frame_for); at anisotropic 1 (ax / ay = 10) a jittered ray that hits
-    # the light inside the narrow direction is weighted by the whole micro-pixel: a firefly of
-    # 55.9 (2.8 x the light; the albedo is <= 0.94) at M = 8 and 16 (8 x 8 lobe cells), 23.4
-    # at M = 24, 12.1 at M = 32. Warping by min(ax, ay) instead made it worse (79.8).
-    ("anisotropic-1", "classic"): "anisotropic lobe firefly: 55.9 > 30 (2.8 x the light)",
-    ("anisotropic-1", "mipmapped"): "anisotropic lobe firefly: 55.9 > 30 (2.8 x the light)",
-    ("anisotropic-1", "hybrid"): "anisotropic lobe firefly: 55.9 > 30 (2.8 x the light)",
-}
+# Measured failures (M = 8), kept as strict xfails until fixed. (Anisotropic 1 was one - a
+# firefly 2.8x the light from the isotropic warp of its lobe - until lib/lobe.glsl mapped the
+# lobe through GGX's slope stretch; tests/pbgi/test_lobe_anisotropic.py.)
+KNOWN: dict[tuple[str, str], str] = {}
 # specular only (black base, F0 4%, roughness 0.5): Hybrid's far-field sharing gives a block's
 # receivers the block's frame, which moves a specular-only mean most: measured 5.0% below
 # Classic (0.02775 vs 0.02921) at M = 8, every other material within 1.6%

@@ -49,12 +49,12 @@ def run(args) -> list[dict]:
                 "hybrid": RenderParams(mode="hybrid", microbuffer=16, asset_occlusion=False,
                                        envmap_beyond=0.0),
                 "envmap": RenderParams(mode="envmap", envmap_face=128)}
+    unit = placed_mesh(object_from_dict({"mesh": "sphere", "translate": list(c), "scale": 1.0},
+                                        "."))
+    r0 = float(np.linalg.norm(unit.positions - c, axis=1).max())   # the unit sphere's radius
     records = []
     for frac in FRACTIONS:
         r = frac * d0
-        unit = placed_mesh(object_from_dict({"mesh": "sphere", "translate": list(c),
-                                             "scale": 1.0}, "."))
-        r0 = float(np.linalg.norm(unit.positions - c, axis=1).max())
         rl.set_asset(placed_mesh(object_from_dict({"mesh": "sphere", "translate": list(c),
                                                    "scale": r / r0}, ".")))
         clear = rl.clearance()

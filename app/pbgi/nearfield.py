@@ -11,8 +11,8 @@ to the environment map; 0 never does.
 The environment map has no self-occlusion and no narrow lobes worth the name, so the hand-over
 happens only when neither is asked for (``near_field_needed``):
 - every material is rough (roughness >= GLOSSY_ROUGHNESS and pbgi.glossy_below, no clearcoat,
-  no roughness texture that could lower it): measured on the demo room, a roughness 0.25 lobe read from the cube map is
-  still 16% (4x4 RMSE) from Classic at a clearance of 16;
+  no roughness texture that could lower it): measured on the demo room, a roughness 0.25 lobe
+  read from the cube map is still 16% (4x4 RMSE) from Classic at a clearance of 16;
 - the asset cannot shadow itself: convex (its volume is that of its convex hull), or asset
   occlusion is off. The asset's own surfels are never dropped while they can matter.
 
@@ -49,11 +49,12 @@ def mesh_is_convex(mesh) -> bool:
     f = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
     if len(f) < 4:
         return False
-    c = p[np.unique(f)].mean(axis=0)
+    used = p[np.unique(f)]
+    c = used.mean(axis=0)
     a, b, d = p[f[:, 0]] - c, p[f[:, 1]] - c, p[f[:, 2]] - c
     volume = abs(np.einsum("ij,ij->i", a, np.cross(b, d)).sum()) / 6.0
     try:
-        hull = ConvexHull(p[np.unique(f)]).volume
+        hull = ConvexHull(used).volume
     except (QhullError, ValueError):
         return False
     return hull > 0 and volume >= CONVEX_VOLUME_RATIO * hull and volume <= 1.02 * hull

@@ -95,6 +95,7 @@ class Relighter:
         self._splat_colors = None          # what the splats show: None = the scan's colours
         self._clearance = None             # ((geometry, asset version), nearfield.Clearance)
         self._kdtree = None                # (geometry key, cKDTree of the scan's points)
+        self._upsampler = None             # upsample.Upsampler, made on the first scaled render
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -156,6 +157,27 @@ class Relighter:
         if self._env is not None:
             self._env.release()
             self._env, self._env_key = None, None
+
+    def materials_for(self, materials=None) -> list:
+        """One material per material of the asset: its own (None), or ``materials``, a single
+        one standing for all of them."""
+        materials = list(self.mesh.materials if materials is None else materials)
+        if not materials:
+            raise ScanlightError(None, "render needs at least one material")
+        if len(materials) == 1 and len(self.mesh.materials) > 1:
+            materials = materials * len(self.mesh.materials)
+        if len(materials) < len(self.mesh.materials):
+            raise ScanlightError(None, f"the asset has {len(self.mesh.materials)} materials, "
+                                       f"got {len(materials)}")
+        return materials
+
+    @property
+    def upsampler(self):
+        """The render-scale upsampling pass (app/pbgi/upsample.py), made on first use."""
+        if self._upsampler is None:
+            from app.pbgi.upsample import Upsampler
+            self._upsampler = Upsampler(self.ctx)
+        return self._upsampler
 
     def clearance(self):
         """The asset's clearance in the scan (app/pbgi/nearfield.py), computed once per cloud
@@ -292,14 +314,7 @@ class Relighter:
         params = (params or RenderParams()).validated()
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
-        materials = list(self.mesh.materials if materials is None else materials)
-        if not materials:
-            raise ScanlightError(None, "render needs at least one material")
-        if len(materials) == 1 and len(self.mesh.materials) > 1:
-            materials = materials * len(self.mesh.materials)
-        if len(materials) < len(self.mesh.materials):
-            raise ScanlightError(None, f"the asset has {len(self.mesh.materials)} materials, "
-                                       f"got {len(materials)}")
+        materials = self.materials_for(materials)
         asked, clear = params.mode, None
         if params.mode != "envmap" and params.envmap_beyond > 0:
             from app.pbgi.nearfield import near_field_needed

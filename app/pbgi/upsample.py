@@ -182,17 +182,13 @@ def render_upsampled(relighter, camera, materials=None, params=None, passes: int
         return relighter.render_passes(camera, materials, params, passes, progress=progress)
     lo = relighter.render_passes(scaled_camera(camera, scale), materials, params, passes,
                                  progress=progress)
-    mats = list(relighter.mesh.materials if materials is None else materials)
-    if len(mats) == 1 and len(relighter.mesh.materials) > 1:
-        mats = mats * len(relighter.mesh.materials)
+    mats = relighter.materials_for(materials)
     relighter.ctx.finish()
     t0 = time.perf_counter()
     gbs = [relighter.gbuffer.render(camera, mats, None, pass_jitter(k))
            for k in range(max(int(passes), 1))]
     guide, cover = guide_texels(gbs, camera, relighter.origin)
-    if getattr(relighter, "_upsampler", None) is None:
-        relighter._upsampler = Upsampler(relighter.ctx)
-    rgb, unfilled = relighter._upsampler.run(gi_texels(lo.image), guide)
+    rgb, unfilled = relighter.upsampler.run(gi_texels(lo.image), guide)
     ms = (time.perf_counter() - t0) * 1e3
     image = np.zeros((camera.height, camera.width, 4), np.float32)
     image[..., :3] = rgb * cover[..., None]

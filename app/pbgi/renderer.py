@@ -95,7 +95,8 @@ class Relighter:
         self._splat_colors = None          # what the splats show: None = the scan's colours
         self._clearance = None             # ((geometry, asset version), nearfield.Clearance)
         self._kdtree = None                # (geometry key, cKDTree of the scan's points)
-        self._upsampler = None             # upsample.Upsampler, made on the first scaled render
+        self.upsampler = None              # app/pbgi/upsample.py's pass on this context, made
+                                           # by the first render_upsampled below scale 1
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -170,14 +171,6 @@ class Relighter:
             raise ScanlightError(None, f"the asset has {len(self.mesh.materials)} materials, "
                                        f"got {len(materials)}")
         return materials
-
-    @property
-    def upsampler(self):
-        """The render-scale upsampling pass (app/pbgi/upsample.py), made on first use."""
-        if self._upsampler is None:
-            from app.pbgi.upsample import Upsampler
-            self._upsampler = Upsampler(self.ctx)
-        return self._upsampler
 
     def clearance(self):
         """The asset's clearance in the scan (app/pbgi/nearfield.py), computed once per cloud

@@ -188,6 +188,8 @@ def render_upsampled(relighter, camera, materials=None, params=None, passes: int
     gbs = [relighter.gbuffer.render(camera, mats, None, pass_jitter(k))
            for k in range(max(int(passes), 1))]
     guide, cover = guide_texels(gbs, camera, relighter.origin)
+    if relighter.upsampler is None:
+        relighter.upsampler = Upsampler(relighter.ctx)
     rgb, unfilled = relighter.upsampler.run(gi_texels(lo.image), guide)
     ms = (time.perf_counter() - t0) * 1e3
     image = np.zeros((camera.height, camera.width, 4), np.float32)

@@ -74,6 +74,11 @@ class ImguiInput:
         imgui.get_io().add_mouse_pos_event(float(x), float(y))
         self._moved = True
 
+    def imgui_button(self, button) -> int | None:
+        """imgui's index of a moderngl-window mouse button (None: one imgui does not track)."""
+        which = self._buttons.get(button)
+        return None if which is None else int(which)
+
     def button(self, x, y, button, down: bool) -> None:
         self.modifiers()
         which = self._buttons.get(button)

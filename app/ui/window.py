@@ -31,6 +31,7 @@ from app.pbgi.renderer import Relighter
 from app.settings import Session, save_last_session
 from app.ui import restore_prompt
 from app.ui.autosave import Autosaver, leftovers, recover
+from app.ui.drag import DragOwner, Motion
 from app.ui.engine import ViewerEngine
 from app.ui.input import ImguiInput
 from app.ui.panels.hdr import PHOTO
@@ -90,7 +91,7 @@ class ViewerWindow:
         self.pending_screenshot: str | None = None
         self.last_screenshot: list[str] = []
         self._keys_down: set = set()
-        self._dragging = False
+        self.drag = DragOwner()        # the view's or the panels' drag (app/ui/drag.py)
         self._last_time = time.perf_counter()
         self.frame_intervals: list[float] = []   # ms between frames: what the user feels
         self.autosaver = Autosaver()
@@ -122,11 +123,19 @@ class ViewerWindow:
 
     def _on_press(self, x, y, button) -> None:
         self.input.button(x, y, button, True)
-        self._dragging = not self._ui_wants_mouse()
+        which = self.input.imgui_button(button)
+        if which is not None:     # the view's drag or the UI's: settled by the next frame
+            self.drag.press(which, self._motion(x, y))
 
     def _on_release(self, x, y, button) -> None:
         self.input.button(x, y, button, False)
-        self._dragging = False
+        if self.input.imgui_button(button) is not None:
+            self._move_view(self.drag.release(x, y))
+
+    def _motion(self, x, y) -> Motion:
+        st, mods = self.wnd.mouse_states, self.wnd.modifiers
+        return Motion(float(x), float(y), bool(mods.alt), bool(mods.ctrl), bool(mods.shift),
+                      bool(st.left), bool(st.middle), bool(st.right))
 
     def _on_scroll(self, dx, dy) -> None:
         self.input.wheel(dx, dy)
@@ -139,24 +148,37 @@ class ViewerWindow:
             self.engine.nav.zoom(dy)
 
     def _on_drag(self, x, y, dx, dy) -> None:
-        self.input.move(x, y)
-        if not self._dragging:
-            return
-        nav, st, mods = self.engine.nav, self.wnd.mouse_states, self.wnd.modifiers
+        self.input.move(x, y)          # the travel comes from positions (app/ui/drag.py)
+        self._move_view(self.drag.motion(self._motion(x, y)))
+
+    def _settle_drag(self) -> None:
+        """Once per frame, after imgui and the gizmo have seen this frame's input."""
+        from imgui_bundle import imgui
+        d = self.drag
+        if d.pending:
+            down = d.button is not None and imgui.is_mouse_down(d.button)
+            self._move_view(d.settle(down, self._ui_wants_mouse()))
+
+    def _move_view(self, steps) -> None:
+        for step in steps:
+            self._move_view_by(step.dx, step.dy, step.motion)
+
+    def _move_view_by(self, dx: float, dy: float, m: Motion) -> None:
+        nav = self.engine.nav
         if self.fly:
             nav.look(dx, dy)
             return
-        if mods.alt:  # Maya
-            if st.left:
+        if m.alt:  # Maya
+            if m.left:
                 nav.orbit(dx, dy)
-            elif st.middle:
+            elif m.middle:
                 nav.pan(dx, dy, self.engine.size[1])
-            elif st.right:
+            elif m.right:
                 nav.dolly_drag(dy)
             return
-        if mods.ctrl:
+        if m.ctrl:
             nav.dolly_drag(dy)
-        elif mods.shift or st.right:
+        elif m.shift or m.right:
             nav.pan(dx, dy, self.engine.size[1])
         else:
             nav.orbit(dx, dy)
@@ -362,7 +384,7 @@ class ViewerWindow:
     # -- frame -----------------------------------------------------------------------------------
     def interacting(self) -> bool:
         from imgui_bundle import imgui, imguizmo
-        return (self._dragging or bool(self.fly and self._keys_down)
+        return (self.drag.dragging or bool(self.fly and self._keys_down)
                 or imgui.is_any_item_active() or imguizmo.im_guizmo.is_using())
 
     def render_frame(self) -> None:
@@ -390,6 +412,7 @@ class ViewerWindow:
         self.input.frame_started()
         imguizmo.im_guizmo.begin_frame()
         self.engine.guard("viewport overlay", overlay.draw, self)
+        self._settle_drag()
         panels.draw(self)
         self.dialog.draw()
         restore_prompt.draw(self)

@@ -44,6 +44,7 @@ def ui(ctx, monkeypatch):
     from tests.support.viewer import small_session, spy_renders
     from app.ui.engine import ViewerEngine
     from app.ui.filedialog import FileDialog
+    from app.ui.drag import DragOwner
     from app.ui.textures import PanelTextures
     from app.ui.window import ViewerWindow
     from app.pbgi.renderer import Relighter
@@ -61,7 +62,7 @@ def ui(ctx, monkeypatch):
                                              "filled_by_poisson": 2, "unresolved": 0},
                     "warnings": ["a warning"]}
     w.pending_screenshot, w.last_screenshot, w.frame_intervals = None, [], [16.0]
-    w._keys_down, w._dragging = set(), False
+    w._keys_down, w.drag = set(), DragOwner()
     ctx_imgui = imgui.create_context()
     io = imgui.get_io()
     io.set_ini_filename("")

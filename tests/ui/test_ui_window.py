@@ -118,6 +118,10 @@ def test_gizmo_and_mouse_navigation(run):
     # a 40 px drag in the viewport orbits by 40 * 0.006 rad (app.ui.navigation ORBIT_RAD_PER_PX)
     assert result["yaw_change"] == pytest.approx(40 * 0.006)
     assert result["panel_wants_mouse"] and result["yaw_change_over_panel"] == 0.0
+    # out of the panel and straight into a drag before the next frame: imgui's flag still said
+    # "panel" at the press, and the view used to ignore the drag (app/ui/drag.py)
+    assert result["panel_wants_mouse_before_quick_drag"]
+    assert result["yaw_change_quick_drag"] == pytest.approx(40 * 0.006)
 
 
 def test_expansion_runs_while_the_window_keeps_drawing(run):

@@ -55,6 +55,21 @@ def press_once(label, res):
     imgui.button = button
 
 
+def drag(viewer, at, steps):
+    """Press, ``steps`` motions of 8 px to the right, release: all between two frames."""
+    x, y = at
+    viewer.wnd.mouse_states.left = True
+    viewer._on_press(x, y, 1)
+    for i in range(1, steps + 1):
+        viewer._on_drag(x + 8 * i, y, 8, 0)
+    viewer.wnd.mouse_states.left = False
+    viewer._on_release(x + 8 * steps, y, 1)
+
+
+def yaw_change(e):
+    return (e.nav.yaw - state["yaw"] + math.pi) % (2 * math.pi) - math.pi
+
+
 def on_frame(viewer, frame):
     if not args:
         args.update(a.split("=", 1) for a in viewer.script_args)
@@ -78,31 +93,41 @@ def on_frame(viewer, frame):
     elif st == 3 and frame - state["since"] >= 2:
         shoot(viewer, "d")
         w, h = e.size
-        viewer.input.move(w - 60, h // 2)   # hover the viewport first,
+        viewer.input.move(w - 100, h // 2)   # hover the viewport first,
         st = 4                                                    # as a real mouse does
     elif st == 4:
-        # a left drag in the viewport orbits the view
-        yaw = e.nav.yaw
+        # a left drag in the viewport orbits the view (applied once the frame has settled who
+        # owns the drag, app/ui/drag.py)
+        state["yaw"] = e.nav.yaw
         w, h = e.size
-        viewer.wnd.mouse_states.left = True
-        viewer._on_press(w - 60, h // 2, 1)
-        for _ in range(5):
-            viewer._on_drag(w - 60, h // 2, 8, 0)
-        viewer._on_release(w - 60, h // 2, 1)
-        viewer.wnd.mouse_states.left = False
-        res["yaw_change"] = (e.nav.yaw - yaw + math.pi) % (2 * math.pi) - math.pi
+        drag(viewer, (w - 100, h // 2), 5)
+        st = 41
+    elif st == 41:
+        res["yaw_change"] = yaw_change(e)
         viewer.input.move(100, 300)         # hover the panel
         state["since"], st = frame, 5
     elif st == 5 and frame - state["since"] >= 3:   # imgui's queue hands one event per frame
         # ... and the same drag over the panel does not
-        yaw = e.nav.yaw
+        state["yaw"] = e.nav.yaw
         viewer.wnd.mouse_states.left = True
         viewer._on_press(100, 300, 1)
         res["panel_wants_mouse"] = bool(viewer._ui_wants_mouse())
-        viewer._on_drag(100, 300, 8, 0)
-        viewer._on_release(100, 300, 1)
+        viewer._on_drag(108, 300, 8, 0)
         viewer.wnd.mouse_states.left = False
-        res["yaw_change_over_panel"] = e.nav.yaw - yaw
+        viewer._on_release(108, 300, 1)
+        st = 51
+    elif st == 51 and frame - state["since"] >= 6:
+        res["yaw_change_over_panel"] = yaw_change(e)
+        # from the panel into the view and a drag, all between two frames: imgui's flags still
+        # say "over the panel" at the press (they are computed in the next new_frame)
+        state["yaw"] = e.nav.yaw
+        res["panel_wants_mouse_before_quick_drag"] = bool(viewer._ui_wants_mouse())
+        w, h = e.size
+        viewer.input.move(w - 100, h // 2)
+        drag(viewer, (w - 100, h // 2), 5)
+        st = 52
+    elif st == 52:
+        res["yaw_change_quick_drag"] = yaw_change(e)
         res["frame_ms_median"] = sorted(e.frame_ms)[len(e.frame_ms) // 2]
         # the HDR expansion in the background, started by the HDR panel's own "Run expansion"
         # button (its click answered once): that frame used to close the window, because the

@@ -98,13 +98,20 @@ def _worker_main(work, request, messages, cancel):
 PROCESS_NICENESS = 10
 
 
-def _process_main(work, request, messages, cancel):
-    """The worker process's entry: lower its priority, then run as a thread worker would."""
+def _process_main(requests, messages, cancel):
+    """The worker process's entry: lower its priority, take the work from the queue, then run as
+    a thread worker would.
+
+    The work and its request (a whole cloud and photo) come through a queue rather than the
+    Process arguments: spawn writes the arguments into the child's pipe from ``start()``, which
+    then blocks the owner (a UI frame) until the child has started its interpreter and read
+    them; a queue's feeder thread writes them in the background."""
     import os
     try:
         os.nice(PROCESS_NICENESS)
     except (AttributeError, OSError):   # no nice() on this platform: same priority
         pass
+    work, request = requests.get()
     _worker_main(work, request, messages, cancel)
 
 
@@ -156,10 +163,11 @@ class Job:
                                                   self._cancel))
             self._worker.start()
         else:
+            self._requests = self._ctx.Queue()     # kept: the child rebuilds it from its name
             self._worker = self._ctx.Process(target=_process_main, name="scanlight-job", daemon=True,
-                                             args=(self.work, self.request, self._messages,
-                                                   self._cancel))
+                                             args=(self._requests, self._messages, self._cancel))
             self._worker.start()
+            self._requests.put((self.work, self.request))   # written by its feeder thread
         return self
 
     def cancel(self) -> None:

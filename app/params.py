@@ -223,7 +223,8 @@ PARAMS: tuple[Param, ...] = (
        label="lobe buffer below", redo="gi"),
     _b("pbgi.asset_occlusion", True, "The asset's own surface, sampled into surfels, in every "
        "micro-buffer: it shadows the room for itself (self-occlusion) and carries the bounce "
-       "below. Off: the asset is lit as if it were alone and convex.",
+       "below. Off: the asset is lit as if it were alone and convex. A convex asset needs "
+       "none and is rendered without them (it cannot shadow or light itself).",
        label="asset self-occlusion", redo="gi"),
     _i("pbgi.asset_bounces", 1, "Diffuse bounces the asset's surfels carry (inter-reflection: "
        "the asset lights itself); 0 = occlusion only. Needs asset self-occlusion.", 0, 2, "",

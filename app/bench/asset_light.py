@@ -33,7 +33,11 @@ VARIANTS = {                     # name -> RenderParams overrides
     "occlusion": {"asset_occlusion": True, "asset_bounces": 0},
     "occlusion+1 bounce": {"asset_occlusion": True, "asset_bounces": 1},
     "occlusion+2 bounces": {"asset_occlusion": True, "asset_bounces": 2},
+    "occlusion+1 bounce, convex walked": {"asset_occlusion": True, "asset_bounces": 1},
 }
+# Variants rendered with Relighter.convex_shortcut off: a convex asset's surfels walked anyway,
+# the "without" side of that decision (the same as occlusion+1 bounce for a non-convex asset).
+WALK_CONVEX = ("occlusion+1 bounce, convex walked",)
 
 
 def add_arguments(parser) -> None:
@@ -79,15 +83,18 @@ def _cost_rows(args, values) -> list[dict]:
                       for v, kw in VARIANTS.items()}
             build = {}
             for v, p in params.items():             # warm up, and time the one-off build
+                rl.convex_shortcut = v not in WALK_CONVEX
                 res = rl.render(cam, mat, p)
                 build[v] = res.stats.ms_asset
             best = {v: None for v in params}
             for _ in range(max(int(args.repeat), 1)):
                 for v, p in params.items():         # interleaved: noise hits every variant
+                    rl.convex_shortcut = v not in WALK_CONVEX
                     rl.forget_microbuffers()
                     res = rl.render(cam, mat, p)
                     if best[v] is None or res.stats.ms < best[v].stats.ms:
                         best[v] = res
+            rl.convex_shortcut = True
             base = best["off"].stats
             for v, res in best.items():
                 st = res.stats
@@ -98,6 +105,7 @@ def _cost_rows(args, values) -> list[dict]:
                                     "nodes_visited": st.nodes_visited or 0.0,
                                     "build_ms": build[v], "mb": st.mb + st.mb_asset,
                                     "mb_asset": st.mb_asset,
+                                    "convex_skipped": float(st.asset_convex_skipped),
                                     "completed": float(st.completed)}))
                 log.info("%s %s %s: %.0f ms (x%.2f), build %.0f ms", asset, mode, v, st.ms,
                          st.ms / base.ms, build[v])

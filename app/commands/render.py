@@ -198,7 +198,7 @@ def render_layers(r, camera, materials, params, passes: int, asset: np.ndarray,
     shadow[..., :3] = lit[..., :3] - plate[..., :3]
     indirect = np.zeros_like(asset)
     indirect[..., 3] = asset[..., 3]
-    if params.asset_occlusion and params.asset_bounces > 0 and params.mode != "envmap":
+    if params.asset_bounces > 0 and r.walks_asset(params):   # else no bounce to take out
         from app.pbgi.upsample import render_upsampled
         dark = render_upsampled(r, camera, materials, replace(params, asset_bounces=0), passes,
                                 scale)

@@ -118,6 +118,8 @@ class RenderStats:
     ms_asset: float = 0.0             # building the asset's surfel tree and bounce when this
                                       # render did it (cached otherwise), outside ``ms``
     mb_asset: float = 0.0             # the joined tree's records and node textures
+    asset_convex_skipped: bool = False  # asset occlusion was on, but the asset is convex: its
+                                      # surfels were left out (Relighter.walks_asset)
     ms: float = 0.0                   # the whole render (every pass)
     passes: int = 1                   # passes averaged (Relighter.render_passes)
     envmap_instead_of: str | None = None  # the mode asked for when the environment map took the

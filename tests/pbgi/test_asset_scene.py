@@ -121,7 +121,9 @@ def test_occlusion_and_bounce_match_the_closed_form_in_the_furnace(shell):
 
 def test_a_convex_asset_is_unchanged_and_a_knot_lights_itself(shell):
     """The sphere sees only the room: with its surfels in the tree its pixels stay within 1.5%
-    (mean 0.5%) of the render without. The knot in the furnace with a white diffuse material:
+    (mean 0.5%) of the render without - which is why a convex asset's render leaves them out
+    (Relighter.walks_asset: the same image as occlusion off, the stats say so). The knot in
+    the furnace with a white diffuse material:
     occlusion alone darkens its folds (some pixels > 15%), two bounces bring the light back
     (pixel mean within 4% of the render without occlusion, which is what an infinitely
     bouncing white furnace gives: every surface radiates 1)."""
@@ -131,12 +133,24 @@ def test_a_convex_asset_is_unchanged_and_a_knot_lights_itself(shell):
     mat = [S.diffuse(0.8, roughness=0.5)]
     off = r.render(FURNACE_CAM, mat, RenderParams(mode="classic", microbuffer=16,
                                                   asset_occlusion=False)).image
-    on = r.render(FURNACE_CAM, mat, RenderParams(mode="classic", microbuffer=16)).image
+    r.convex_shortcut = False
+    with_surfels = r.render(FURNACE_CAM, mat, RenderParams(mode="classic", microbuffer=16))
+    assert with_surfels.stats.asset_surfels > 0 and not with_surfels.stats.asset_convex_skipped
+    on = with_surfels.image
     m = off[..., 3] > 0
     rel = on[m, :3] / off[m, :3] - 1
     assert np.abs(rel).max() < 0.015 and np.abs(rel).mean() < 0.005
+    r.convex_shortcut = True
+    for mode in ("classic", "hybrid"):
+        short = r.render(FURNACE_CAM, mat, RenderParams(mode=mode, microbuffer=16))
+        assert short.stats.asset_convex_skipped and short.stats.asset_surfels == 0
+        assert r.asset_scene_ready(mat, RenderParams(mode=mode))   # nothing to build
+        base = r.render(FURNACE_CAM, mat, RenderParams(mode=mode, microbuffer=16,
+                                                       asset_occlusion=False)).image
+        assert np.array_equal(short.image, base)
 
     r.set_asset(_knot())
+    assert not r.asset_convex() and r.walks_asset(RenderParams(mode="hybrid"))
     white = [Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.5)]
     imgs = {}
     for key, kw in (("off", dict(asset_occlusion=False)), ("b0", dict(asset_bounces=0)),

@@ -20,32 +20,11 @@ from app.camera import Camera
 from app.cloud import PointCloud
 from app.color import luminance
 from app.demo.room import DemoScene, ldr_scan
+from app.render.equirect import direction_to_uv, sample_panorama  # noqa: F401 (re-exported)
 
 ROOM_MIN = np.array([-2.0, 0.0, -2.0])
 ROOM_MAX = np.array([2.0, 2.8, 2.0])
 CENTRE = np.array([0.0, 1.4, 0.0])
-
-
-def direction_to_uv(d: np.ndarray, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
-    """Equirectangular pixel coordinates (pixel-centre convention) of unit directions; -z is the
-    panorama's centre column, +y its top row."""
-    lon = np.arctan2(d[:, 0], -d[:, 2])
-    lat = np.arcsin(np.clip(d[:, 1], -1, 1))
-    return (lon / (2 * np.pi) + 0.5) * w - 0.5, (0.5 - lat / np.pi) * h - 0.5
-
-
-def sample_panorama(pano: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Bilinear lookup with horizontal wrap-around."""
-    h, w = pano.shape[:2]
-    x, y = direction_to_uv(d / np.linalg.norm(d, axis=1, keepdims=True), w, h)
-    y = np.clip(y, 0, h - 1)
-    x0 = np.floor(x).astype(np.int64)
-    y0 = np.minimum(np.floor(y).astype(np.int64), h - 2)
-    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-    x0, x1 = x0 % w, (x0 + 1) % w
-    top = pano[y0, x0] * (1 - fx) + pano[y0, x1] * fx
-    bot = pano[y0 + 1, x0] * (1 - fx) + pano[y0 + 1, x1] * fx
-    return (top * (1 - fy) + bot * fy).astype(np.float32)
 
 
 def box_points(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

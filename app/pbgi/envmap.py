@@ -41,22 +41,30 @@ def fill_holes(rgba: np.ndarray) -> np.ndarray:
 
 
 class EnvironmentMap:
-    """A float32 RGB cube texture with mipmaps (textureLod by micro-pixel solid angle)."""
+    """A float32 RGB cube texture with mipmaps (textureLod by micro-pixel solid angle), from six
+    (S, S, 3) faces in cube_cameras' order, each row 0 at the top: the cloud's splats seen from
+    the asset's centre (``of_splats``), or an HDRI panorama (app/pbgi/hdri.py)."""
 
-    def __init__(self, ctx, splat: SplatRenderer, centre, face_size: int = DEFAULT_FACE):
+    def __init__(self, ctx, faces, centre):
         self.ctx = ctx
         self.centre = np.asarray(centre, dtype=np.float64)
-        self.face_size = int(face_size)
-        faces = [fill_holes(splat.render(cam)) for cam in cube_cameras(self.centre, self.face_size)]
-        # render() returns row 0 at the top; the cube face wants the framebuffer's own order
+        self.face_size = int(faces[0].shape[0])
+        # faces have row 0 at the top; the cube face wants the framebuffer's own order
         # (bottom row first) for cube_cameras' orientation - verified per face by a test.
-        data = np.concatenate([np.ascontiguousarray(f[::-1], dtype="f4").ravel() for f in faces])
+        data = np.concatenate([np.ascontiguousarray(f[::-1, :, :3], dtype="f4").ravel()
+                               for f in faces])
         self.faces = faces
         self.texture = ctx.texture_cube((self.face_size, self.face_size), 3, data.tobytes(),
                                         dtype="f4")
         self.texture.build_mipmaps()
         self.texel_omega = (2.0 / self.face_size) ** 2
         self.nbytes = int(data.nbytes * 4 // 3)
+
+    @classmethod
+    def of_splats(cls, ctx, splat: SplatRenderer, centre, face_size: int = DEFAULT_FACE):
+        """The room's splats seen from ``centre``, holes filled (app/render/splat.py)."""
+        faces = [fill_holes(splat.render(cam)) for cam in cube_cameras(centre, int(face_size))]
+        return cls(ctx, faces, centre)
 
     def release(self) -> None:
         self.texture.release()

@@ -88,6 +88,7 @@ class Relighter:
         self._splat = None
         self._env = None
         self._env_key = None
+        self.hdri = None                   # app/pbgi/hdri.py: lights the asset instead of the scan
         self.last_receivers = None
         self._lobe = None                  # LobeBuffers, made on the first glossy render
         self._geo_key = None               # the cloud's geometry fingerprint
@@ -159,6 +160,15 @@ class Relighter:
         self._asset_version += 1
         origin = self.hierarchy.origin if self.hierarchy is not None else np.zeros(3)
         self.gbuffer.upload(mesh, origin)
+        if self._env is not None:
+            self._env.release()
+            self._env, self._env_key = None, None
+
+    def set_hdri(self, hdri) -> None:
+        """Light the asset with an HDRI (app/pbgi/hdri.py) instead of the scan, or with the scan
+        again (None). An HDRI is distant light: every render gathers it through the environment
+        map (exact for it), whatever ``params.mode`` asks, and the background shows it."""
+        self.hdri = hdri
         if self._env is not None:
             self._env.release()
             self._env, self._env_key = None, None
@@ -239,7 +249,11 @@ class Relighter:
     def background(self, camera, differential=None) -> np.ndarray:
         """The room's point splats from ``camera``, (h, w, 4), alpha 1 where a splat covers;
         with a ``differential`` (``Relighter.differential``) the asset's shadow and bounce on
-        the scan are in it."""
+        the scan are in it. With an HDRI lighting the asset (``set_hdri``), the panorama
+        seen by ``camera`` instead."""
+        if self.hdri is not None:
+            from app.pbgi.hdri import hdri_backdrop
+            return hdri_backdrop(self.hdri, camera)
         return self._splats_showing(differential).render(camera)
 
     @property
@@ -300,12 +314,18 @@ class Relighter:
 
     def environment(self, face: int):
         from app.pbgi.envmap import EnvironmentMap
-        key = (self._cloud_version, self._asset_version, int(face))
+        key = (self._cloud_version, self._asset_version, int(face),
+               None if self.hdri is None else self.hdri.key)
         if self._env_key != key:
             if self._env is not None:
                 self._env.release()
-            self._env = EnvironmentMap(self.ctx, self._splats_showing(None), self.object_centre(),
-                                       face)
+            if self.hdri is not None:
+                from app.pbgi.hdri import hdri_faces
+                self._env = EnvironmentMap(self.ctx, hdri_faces(self.hdri, int(face)),
+                                           self.object_centre())
+            else:
+                self._env = EnvironmentMap.of_splats(self.ctx, self._splats_showing(None),
+                                                     self.object_centre(), face)
             self._env_key = key
         return self._env
 
@@ -335,6 +355,8 @@ class Relighter:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
         materials = self.materials_for(materials)
         asked, clear = params.mode, None
+        if self.hdri is not None:          # distant light: the environment map is exact for it
+            params = replace(params, mode="envmap")
         if params.mode != "envmap" and params.envmap_beyond > 0:
             from app.pbgi.nearfield import near_field_needed
             clear = self.clearance()
@@ -373,6 +395,8 @@ class Relighter:
                             bsh_mb=(self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
                             micropixels=n * m * m, entries=n * entries(m),
                             ms_gbuffer=(t1 - t0) * 1e3)
+        if self.hdri is not None:
+            stats.hdri = self.hdri.source or "(in memory)"
         if clear is not None:
             stats.clearance = clear.ratio
             if params.mode != asked:

@@ -116,7 +116,7 @@ def test_cube_map_faces_look_where_they_should(ctx):
     c0 = S.box_room(0.03)
     cloud = PointCloud(c0.positions, c0.normals, (c0.positions + [2, 1, 2]).astype("f4"))
     centre = np.array([0.0, 1.0, 0.0])
-    env = EnvironmentMap(ctx, SplatRenderer(cloud, ctx=ctx), centre, 64)
+    env = EnvironmentMap.of_splats(ctx, SplatRenderer(cloud, ctx=ctx), centre, 64)
     cs = ctx.compute_shader("""#version 430
         layout(local_size_x = 1) in;
         uniform samplerCube u_env;

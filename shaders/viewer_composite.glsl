@@ -15,7 +15,8 @@
 //                     lib/joint_bilateral.glsl, shared with `scanlight render`'s gi_upsample.glsl);
 //   else           =  the room's splat colour, or the background where no splat landed.
 // Outputs: the linear composite (COMPOSITE_TEXEL, for EXR screenshots) and the display image
-// (RGBA8: radiance x 2^EV, tone mapped, sRGB encoded). u_raw shows room colours as they are (false
+// (RGBA8: radiance x 2^EV, tone mapped by u_tonemap, sRGB encoded; or with u_false_colour the
+// luminance's EV band, lib/tonemap.glsl false_colour). u_raw shows room colours as they are (false
 // colour difference maps). u_unavailable hatches the asset and overlays u_label (a text image).
 //
 // Texture and image units, the texel records (RoomTexel, GuideTexel, GiTexel, CompositeTexel)
@@ -50,7 +51,8 @@ uniform ivec2 u_full_size;
 uniform float u_near;          // the splat pass's projection, to linearise its depth
 uniform float u_far;
 uniform float u_exposure;      // stops (EV)
-uniform int u_tonemap;         // 0 = PBR Neutral, 1 = clamp
+uniform int u_tonemap;         // a TONEMAP_* index (injected from app/render/tonemap.py)
+uniform int u_false_colour;    // 1: EV bands of the luminance instead of the tone-mapped colour
 uniform int u_raw_room;        // 1: room colours bypass exposure and tone mapping
 uniform int u_unavailable;
 uniform ivec4 u_label_rect;    // x, y (bottom-left), w, h in pixels; w = 0: no label
@@ -63,8 +65,8 @@ float linear_depth(float d) {
 
 vec3 display(vec3 linear_rgb, bool raw) {
     if (raw) return srgb_encode(tonemap_sanitize(linear_rgb));
-    if (u_tonemap == 0) return tonemap_to_srgb(linear_rgb, u_exposure);
-    return srgb_encode(tonemap_sanitize(tonemap_sanitize(linear_rgb) * exp2(u_exposure)));
+    if (u_false_colour != 0) return false_colour(linear_rgb, u_exposure);
+    return tonemap_to_srgb(linear_rgb, u_exposure, u_tonemap);
 }
 
 void main() {

@@ -7,6 +7,9 @@
 3. the sphere relit by the LDR, expanded and ground-truth clouds (Hybrid PBGI, or Classic where
    Hybrid is unavailable), composited over the room, with the relit-render error (Table 2);
 4. the room itself as point splats: LDR, HDR and the difference map (paper Fig. 1).
+
+Every PNG goes through ``run_demo``'s ``tonemapper`` (one of app.render.tonemap.TONEMAPPERS;
+default Khronos PBR Neutral, the viewer's default), named in the report; the EXRs are linear.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import numpy as np
 from app.demo import room
 from app.demo.cache import load_demo
 from app.io.files import write_json
+from app.render.tonemap import DEFAULT as DEFAULT_TONEMAP, get as tonemap_get
 
 log = logging.getLogger(__name__)
 
@@ -38,10 +42,11 @@ def _progress(fraction: float, stage: str) -> None:
         print(f"  expanding: {stage} ({100 * fraction:.0f}%)", file=sys.stderr, flush=True)
 
 
-def _save_png(path: Path, linear_rgb: np.ndarray, exposure: float = 0.0) -> None:
+def _save_png(path: Path, linear_rgb: np.ndarray, exposure: float = 0.0,
+              tonemapper: str = DEFAULT_TONEMAP) -> None:
     from app.io.images import write_png
     from app.render.tonemap import tonemap_to_srgb8
-    write_png(path, tonemap_to_srgb8(linear_rgb, exposure))
+    write_png(path, tonemap_to_srgb8(linear_rgb, exposure, tonemapper))
 
 
 def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
@@ -62,14 +67,16 @@ def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
 
 
 def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
-             face_size: int | None = None) -> dict:
-    """Every stage on the demo scene; ``face_size`` None: the table's ``hdr.face_size``."""
+             face_size: int | None = None, tonemapper: str = DEFAULT_TONEMAP) -> dict:
+    """Every stage on the demo scene; ``face_size`` None: the table's ``hdr.face_size``;
+    ``tonemapper``: the PNGs' tone mapper (default PBR Neutral)."""
     from app.hdr.evaluate import expansion_errors
     from app.hdr.pipeline import ExpandParams, run_expansion
     from app.io.formats import object_from_dict, placed_mesh
     from app.pbgi.compare import relit_errors, scaled
     from app.pbgi.renderer import Relighter
 
+    tonemap_get(tonemapper)                       # an unknown name fails before any work
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     timings, summary = {}, []
@@ -109,7 +116,7 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
             comp = img[..., :3] * img[..., 3:] + background * (1 - img[..., 3:])
             from app.io.exr import write_exr
             write_exr(out / f"relit_{view}_{name}.exr", img)   # RGBA: A = coverage
-            _save_png(out / f"relit_{view}_{name}.png", comp)
+            _save_png(out / f"relit_{view}_{name}.png", comp, tonemapper=tonemapper)
     timings["relight_s"] = time.perf_counter() - t
     for view, errs in renders.items():
         summary.append(f"relit {view} ({mode}), relative RMS vs ground-truth lighting: "
@@ -123,11 +130,12 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
     hdr_img = splat.render(cam)[..., :3] / scene.alpha
     splat.set_colors(scene.ldr.colors)
     ldr_img = splat.render(cam)[..., :3] / scene.alpha
-    _save_png(out / "room_ldr.png", ldr_img)
-    _save_png(out / "room_hdr.png", hdr_img, exposure=-2.0)
-    _save_png(out / "room_difference.png", np.abs(hdr_img - ldr_img))
+    _save_png(out / "room_ldr.png", ldr_img, tonemapper=tonemapper)
+    _save_png(out / "room_hdr.png", hdr_img, exposure=-2.0, tonemapper=tonemapper)
+    _save_png(out / "room_difference.png", np.abs(hdr_img - ldr_img), tonemapper=tonemapper)
     splat.release()
 
     return {"scene": {k: str(v) for k, v in files.items()}, "points": len(scene.gt),
             "alpha": scene.alpha, "expansion": exp.report, "point_errors": point_err,
-            "render_mode": mode, "render_errors": renders, "timings": timings, "summary": summary}
+            "render_mode": mode, "render_errors": renders, "timings": timings, "summary": summary,
+            "tonemapper": tonemap_get(tonemapper).title}

@@ -27,12 +27,26 @@ def difference_colors(ldr: np.ndarray, hdr: np.ndarray) -> np.ndarray:
     """False colour of log2(Y_hdr / Y_ldr) per point (paper Fig. 1): black where expansion added
     nothing, through blue, green, yellow to white at DIFF_STOPS stops."""
     eps = 1e-4
-    d = np.log2((luminance(hdr) + eps) / (luminance(ldr) + eps))
-    t = np.clip(d / DIFF_STOPS, 0.0, 1.0)
+    return difference_ramp(np.log2((luminance(hdr) + eps) / (luminance(ldr) + eps)))
+
+
+def difference_ramp(stops_added) -> np.ndarray:
+    """The difference map's colour (linear, shown raw) of ``stops_added`` stops."""
+    t = np.clip(np.asarray(stops_added, np.float64) / DIFF_STOPS, 0.0, 1.0)
     stops = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
     ramp = np.array([[0.01, 0.01, 0.02], [0.05, 0.15, 0.8], [0.1, 0.7, 0.2],
                      [0.95, 0.85, 0.1], [1.0, 1.0, 1.0]])
     return np.stack([np.interp(t, stops, ramp[:, c]) for c in range(3)], axis=-1).astype(np.float32)
+
+
+def difference_legend() -> list[tuple[str, tuple[float, float, float]]]:
+    """(text, display sRGB colour) at each whole stop 0 .. DIFF_STOPS, for the viewer's legend:
+    the colours as the viewport shows them (raw colours, sRGB-encoded)."""
+    from app.render.tonemap import srgb_encode
+    ks = np.arange(int(DIFF_STOPS) + 1)
+    rgb = srgb_encode(difference_ramp(ks))
+    return [(f"+{k} EV" + (" or more" if k == DIFF_STOPS else ""), tuple(map(float, c)))
+            for k, c in zip(ks, rgb)]
 
 
 @dataclass

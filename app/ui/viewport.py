@@ -3,7 +3,8 @@
 One instance per context; the window and the offscreen runner use the same one, so a batch
 screenshot is exactly what the window shows under its panels. Every frame:
 
-1. the room's point splats into an RGBA32F target with depth (app.render.splat),
+1. the room's point splats into an RGBA32F target with depth (app.render.splat: surface
+   splatting, push-pull hole filling, optional eye-dome lighting),
 2. the placed asset rasterised into a normal + eye-depth G-buffer (cheap, full resolution),
 3. the composite compute pass (shaders/viewer_composite.glsl) blends the room with the GI
    images handed over by app.ui.refine, tone maps, and writes an RGBA8 display image plus the
@@ -26,6 +27,7 @@ from app.render.gpu_layout import (COMPOSITE_TEXEL, COMPOSITE_TILE, GI_TEXEL, GU
                                    ROOM_TEXEL, VIEW_IMG, VIEW_TEX, VIEWER_VERTEX)
 from app.render.programs import load_compute, load_program
 from app.render.splat import SplatRenderer, gl_mat, near_far, relative_view
+from app.render.tonemap import glsl_defines as tonemap_defines, index as tonemap_index
 
 BACKGROUND = (0.02, 0.02, 0.025)
 
@@ -46,9 +48,11 @@ class ViewportRenderer:
         self.moderngl = moderngl
         self.ctx = ctx
         from app.ui import composite as twin
-        # the upsampling's weights come from gen/joint_bilateral.glsl (app/pbgi/upsample.py)
+        # the upsampling's weights come from gen/joint_bilateral.glsl (app/pbgi/upsample.py); the
+        # tone mappers' indices and the false-colour bands from the registry (lib/tonemap.glsl)
         weights = {"ROOM_DEPTH_SCALE": repr(float(twin.ROOM_DEPTH_SLACK[0])),
-                   "ROOM_DEPTH_BIAS": repr(float(twin.ROOM_DEPTH_SLACK[1]))}
+                   "ROOM_DEPTH_BIAS": repr(float(twin.ROOM_DEPTH_SLACK[1])),
+                   **tonemap_defines()}
         self.room_cs = load_compute(ctx, "viewer_composite.glsl", weights)
         self.asset_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, ASSET_PASS=1))
         self.label_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, LABEL_PASS=1))
@@ -107,8 +111,12 @@ class ViewportRenderer:
         self.splat = SplatRenderer(cloud, ctx=self.ctx)
         self.base_radius = self.splat.radius
 
-    def set_colors(self, colors: np.ndarray) -> None:
+    def set_colors(self, colors: np.ndarray, categorical: bool | None = None) -> None:
+        """New splat colours; ``categorical`` (None: as before): they are labels, never mixed
+        (the provenance view)."""
         self.splat.set_colors(colors)
+        if categorical is not None:
+            self.splat.categorical = bool(categorical)
 
     def set_asset(self, mesh) -> None:
         """Upload the placed mesh (world space) for the G-buffer; None removes the asset."""
@@ -164,14 +172,18 @@ class ViewportRenderer:
             self.full_tex.write(_flip(block).tobytes(), viewport=(x, h - y - rh, rw, rh))
 
     # -- passes ----------------------------------------------------------------------------------
-    def draw_room(self, camera: Camera, splat_scale: float = 1.0) -> None:
+    def draw_room(self, camera: Camera, splat_scale: float = 1.0, eye_dome: bool = False) -> None:
+        """The room backdrop into room_tex / room_depth, as ``render --background`` draws it
+        (SplatRenderer.render_to: surface splatting, hole filling, optional eye-dome lighting);
+        filled holes keep the cleared depth (the composite puts the asset in front there)."""
         self.room_fbo.use()
         self.room_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         if self.splat is not None:
             self.splat.radius = self.base_radius * float(splat_scale)
             self.ctx.enable_only(self.moderngl.NOTHING)
-            self.splat.draw(camera)
+            self.splat.render_to(camera, self.room_tex, self.room_depth, eye_dome=eye_dome)
             self.ctx.enable_only(self.moderngl.NOTHING)
+            self.room_fbo.use()
 
     def draw_gbuffer(self, camera: Camera) -> None:
         self.gbuf_fbo.use()
@@ -186,9 +198,13 @@ class ViewportRenderer:
         self.asset_vao.render(self.moderngl.TRIANGLES)
 
     def composite(self, camera: Camera, exposure: float, tonemap: str, raw_room: bool,
-                  unavailable: bool, asset_rect=None, label_rect=None, room: bool = True) -> None:
+                  unavailable: bool, asset_rect=None, label_rect=None, room: bool = True,
+                  false_colour: bool = False) -> None:
         """Run the composite passes. Rectangles are (x, y, w, h) with row 0 at the TOP;
-        ``room=False`` re-runs only the asset rectangle (after a GI update) and the label."""
+        ``room=False`` re-runs only the asset rectangle (after a GI update) and the label.
+        ``tonemap`` is a name of app.render.tonemap.TONEMAPPERS; ``false_colour`` shows the
+        EV bands (app.render.tonemap.false_colour) instead, except on raw (false-colour) room
+        colours."""
         w, h = self.size
         if self.splat is not None:
             near, far = near_far(camera, *self.splat.bounds)
@@ -209,7 +225,8 @@ class ViewportRenderer:
         values = {
             "u_size": (w, h), "u_preview_size": self.preview_tex.size,
             "u_full_size": self.full_tex.size, "u_near": near, "u_far": far,
-            "u_exposure": float(exposure), "u_tonemap": 0 if tonemap == "pbr-neutral" else 1,
+            "u_exposure": float(exposure), "u_tonemap": tonemap_index(tonemap),
+            "u_false_colour": int(false_colour),
             "u_raw_room": int(raw_room), "u_unavailable": int(unavailable),
             "u_background": BACKGROUND, "u_label_rect": gl_label or (0, 0, 0, 0),
         }   # the samplers' units are their layout(binding = VIEW_TEX_*)

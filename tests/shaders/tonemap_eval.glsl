@@ -1,4 +1,5 @@
-// Applies tonemap_to_srgb to an array of colours (tests compare it with app/render/tonemap.py).
+// Applies tonemap_to_srgb (u_tonemap: a TONEMAP_* index; u_tonemap < 0: false_colour) to an array
+// of colours (tests compare it with app/render/tonemap.py).
 // in_rgb[i].xyz = linear colour; out_rgb[i] = (display sRGB, 1 = completed).
 #include "lib/tonemap.glsl"
 
@@ -9,9 +10,12 @@ layout(std430, binding = 1) writeonly buffer OutBuf { vec4 out_rgb[]; };
 
 uniform uint u_count;
 uniform float u_exposure_stops;
+uniform int u_tonemap;
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
-    out_rgb[i] = vec4(tonemap_to_srgb(in_rgb[i].xyz, u_exposure_stops), 1.0);
+    vec3 c = u_tonemap < 0 ? false_colour(in_rgb[i].xyz, u_exposure_stops)
+                           : tonemap_to_srgb(in_rgb[i].xyz, u_exposure_stops, u_tonemap);
+    out_rgb[i] = vec4(c, 1.0);
 }

@@ -1,6 +1,7 @@
 """HDR expansion: the photo and the exposure found, method and thresholds, Run / Cancel with
 progress while the job runs in the background, then LDR / HDR / difference / provenance, with
-the provenance legend while that view is shown (app/ui/provenance.py)."""
+the provenance legend (app/ui/provenance.py) or the difference map's legend (stops added,
+app/ui/scene.py) while that view is shown."""
 
 from __future__ import annotations
 
@@ -97,6 +98,11 @@ def _show_choice(ui) -> None:
     imgui.end_disabled()
     if cur == "provenance":
         _legend(ui)
+    elif cur == "difference" and has_hdr:
+        from app.ui.panels.display import swatch_legend
+        from app.ui.scene import difference_legend
+        swatch_legend("difference legend", difference_legend(),
+                      "log2(Y_hdr / Y_ldr): the light the expansion added to each point.")
 
 
 def _legend(ui) -> None:

@@ -4,7 +4,9 @@ app/render/gpu_records.py).
 
 The passes (app/ui/viewport.py drives them; app/render/splat.py draws the room):
 
-* splat.glsl draws the room cloud (``SPLAT_VERTEX``) into an RGBA32F target of ``ROOM_TEXEL``;
+* splat.glsl draws the room cloud (``SPLAT_VERTEX``) as oriented discs (a depth pass, then an
+  accumulation pass), splat_resolve.glsl normalises, fills small holes (push-pull) and shades
+  (eye-dome lighting) into an RGBA32F target of ``ROOM_TEXEL``;
 * viewer_gbuffer.glsl rasterises the asset (``VIEWER_VERTEX``) into ``GUIDE_TEXEL``;
 * viewer_composite.glsl reads those, the room's depth, the two GI images of app/ui/refine.py
   (``GI_TEXEL``) and a label, on the texture units ``VIEW_TEX``, and writes the linear composite
@@ -36,6 +38,20 @@ VIEW_IMG = Units("image units of viewer_composite.glsl: layout(format, binding =
                      "LINEAR": (0, "the linear composite (COMPOSITE_TEXEL)"),
                      "DISPLAY": (1, "the display image (RGBA8 sRGB)"),
                  })
+SPLAT_TEX = Units("texture units of splat.glsl: layout(binding = SPLAT_TEX_X) uniform sampler2D "
+                  "u_x, Texture.use(location)", "SPLAT_TEX_", {
+                      "FRONT": (0, "window depth of the depth pass (the accumulation pass "
+                                   "reads it)"),
+                  })
+SPLAT_IMG = Units("image units of splat_resolve.glsl: layout(format, binding = SPLAT_IMG_X) "
+                  "uniform image2D u_x, bind_to_image", "SPLAT_IMG_", {
+                      "SRC": (0, "read: the sums (normalise), level l (pull), level l+1 (push), "
+                                 "filled level 0 (finish)"),
+                      "AUX": (1, "read: sum of weight x depth (normalise), level l (push)"),
+                      "DST": (2, "written: a level, or the ROOM_TEXEL image (finish)"),
+                  })
+SPLAT_RESOLVE_TILE = 8        # splat_resolve.glsl's work group: TILE x TILE pixels
+DEPTH_SUM_TARGET = 1          # splat.glsl's accumulation pass: second output, sum of w x depth
 COMPOSITE_TILE = 8            # viewer_composite.glsl's work group: TILE x TILE pixels
 DISPLAY_FORMAT = "rgba8"      # image format of the display image (and of the label texture)
 COLOR_TARGET = 0              # fragment output location: each pass's only colour attachment
@@ -46,6 +62,9 @@ COLOR_TARGET = 0              # fragment output location: each pass's only colou
 SPLAT_VERTEX = Record("SplatVertex", (
     Field("position", "vec3", "relative to the cloud's origin (float64 shift on the CPU)"),
     Field("color", "vec3", "linear radiance of the point"),
+    Field("normal", "vec3", "unit normal: the splat is a disc in the plane it spans"),
+    Field("radius", "float", "disc radius relative to the renderer's global radius (local "
+          "point spacing / median spacing, clamped)"),
 ), word="float", slot_words=1, doc="a point of the room cloud (splat.glsl)")
 
 VIEWER_VERTEX = Record("ViewerVertex", (
@@ -120,9 +139,27 @@ layout(location = {COLOR_TARGET}) out vec4 {output};
 
 
 def splat_glsl() -> str:
-    """``gen/splat.glsl``: splat.glsl's vertex inputs (SPLAT_VERTEX) and output (ROOM_TEXEL)."""
-    return _vertex_pass("splat_glsl", "SPLAT_VERTEX or ROOM_TEXEL", "SCANLIGHT_GEN_SPLAT_GLSL",
-                        SPLAT_VERTEX, ROOM_TEXEL, "room_texel", "out_room")
+    """``gen/splat.glsl``: splat.glsl's vertex inputs (SPLAT_VERTEX), outputs (ROOM_TEXEL; the
+    accumulation pass's sum of weight x depth) and texture units (SPLAT_TEX)."""
+    body = _vertex_pass("splat_glsl", "SPLAT_VERTEX, ROOM_TEXEL, SPLAT_TEX or DEPTH_SUM_TARGET",
+                        "SCANLIGHT_GEN_SPLAT_GLSL", SPLAT_VERTEX, ROOM_TEXEL, "room_texel",
+                        "out_room")
+    extra = (f"{SPLAT_TEX.glsl()}\n#ifdef FRAGMENT_SHADER\n// the accumulation pass's sum of "
+             f"weight x eye depth\nlayout(location = {DEPTH_SUM_TARGET}) out float "
+             f"out_depth_sum;\n#endif\n#endif\n")
+    return body[:body.rindex("#endif")] + extra
+
+
+def splat_resolve_glsl() -> str:
+    """``gen/splat_resolve.glsl``: splat_resolve.glsl's image units (SPLAT_IMG), work group and
+    the ROOM_TEXEL codec."""
+    return f"""{_head("splat_resolve_glsl", "SPLAT_IMG or SPLAT_RESOLVE_TILE",
+                      "SCANLIGHT_GEN_SPLAT_RESOLVE_GLSL")}
+{SPLAT_IMG.glsl()}
+#define SPLAT_TILE {SPLAT_RESOLVE_TILE}   // work group: SPLAT_TILE x SPLAT_TILE pixels
+#include "gen/viewer_texels.glsl"
+#endif
+"""
 
 
 def gbuffer_glsl() -> str:
@@ -169,6 +206,7 @@ void composite_store(ivec2 p, CompositeTexel v) {{ imageStore(u_linear, p, compo
 GENERATED = {
     "gen/viewer_texels.glsl": texels_glsl,
     "gen/splat.glsl": splat_glsl,
+    "gen/splat_resolve.glsl": splat_resolve_glsl,
     "gen/viewer_gbuffer.glsl": gbuffer_glsl,
     "gen/viewer_composite.glsl": composite_glsl,
 }

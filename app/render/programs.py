@@ -41,6 +41,7 @@ GENERATED_INCLUDES = {
     "gen/gather_output.glsl": "app.pbgi.gpu_layout:gather_output_glsl",
     "gen/viewer_texels.glsl": "app.render.gpu_layout:texels_glsl",
     "gen/splat.glsl": "app.render.gpu_layout:splat_glsl",
+    "gen/splat_resolve.glsl": "app.render.gpu_layout:splat_resolve_glsl",
     "gen/viewer_gbuffer.glsl": "app.render.gpu_layout:gbuffer_glsl",
     "gen/viewer_composite.glsl": "app.render.gpu_layout:composite_glsl",
     "gen/joint_bilateral.glsl": "app.pbgi.upsample:weights_glsl",

@@ -50,7 +50,10 @@ void main() {
 #include "gen/splat.glsl"
 out vec3 o_position;
 out vec3 o_color;
-void main() { o_position = in_position; o_color = in_color; }
+out vec3 o_normal;
+out float o_radius;
+void main() { o_position = in_position; o_color = in_color; o_normal = in_normal;
+              o_radius = in_radius; }
 #else
 #include "gen/viewer_gbuffer.glsl"
 out vec3 o_position;

@@ -1,4 +1,12 @@
-"""``scanlight view``: the look-dev window; headless machines fall back to the demo."""
+"""``scanlight view [CLOUD] [ASSET]``: the look-dev window; headless machines fall back to the demo.
+
+    scanlight view room.ply bunny.glb [--fit S] [--translate X,Y,Z] [--rotate X,Y,Z]
+
+CLOUD and ASSET (either order, each optional) open that scan and that asset instead of the demo's:
+a mesh stands on the scan's floor below the room's centre, in its own units unless ``--fit``, as
+``render --object`` places it (app/commands/asset_args.py, app/io/placement.py); an object JSON
+where it says; a cloud alone gets the default sphere standing on its floor. The view starts
+framed on the asset. A missing or unreadable file is one line, exit 3."""
 
 from __future__ import annotations
 
@@ -11,6 +19,13 @@ log = logging.getLogger(__name__)
 
 
 def add_arguments(parser) -> None:
+    from app.commands.asset_args import add_placement_arguments
+    parser.add_argument("cloud", nargs="?", metavar="CLOUD",
+                        help="open this point cloud (PLY/PCD/XYZ) instead of the demo room")
+    parser.add_argument("asset", nargs="?", metavar="ASSET",
+                        help="open this asset: a mesh (.glb/.gltf/.obj), standing on the "
+                             "scan's floor, or an object JSON (either order with CLOUD)")
+    add_placement_arguments(parser)
     parser.add_argument("--session", metavar="JSON", help="open a saved session")
     parser.add_argument("--last", action="store_true", help="reopen the last session")
     parser.add_argument("--offscreen", action="store_true",
@@ -39,9 +54,10 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     if not args.offscreen and is_headless_display():
-        if args.script:
+        if args.script or getattr(args, "cloud", None) or getattr(args, "asset", None):
             from app.errors import UsageError
-            raise UsageError(None, "--script drives the viewer, but there is no display (DISPLAY "
+            what = "--script drives the viewer" if args.script else "the files open in the viewer"
+            raise UsageError(None, f"{what}, but there is no display (DISPLAY "
                                    "is not set): add --offscreen, or run under xvfb-run")
         print("scanlight view: no display found (DISPLAY is not set); running the headless demo "
               f"instead, writing to {args.out}/ (use xvfb-run for a virtual screen)", file=sys.stderr)

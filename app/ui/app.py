@@ -56,10 +56,18 @@ def load_script(path):
     return mod.on_frame
 
 
-def open_session(args) -> Session:
+def open_session(args, cloud: str | None = None, asset: str | None = None) -> Session:
+    """The session to open: --session, --last, or the demo's (with ``cloud``, that scan instead
+    of the demo room; the asset is placed once the cloud is loaded: app.ui.files.open_at_start)."""
     from app.ui.engine import default_session
     if getattr(args, "session", None) and getattr(args, "last", False):
         raise UsageError(None, "give either --session or --last, not both")
+    if (cloud or asset) and (getattr(args, "session", None) or getattr(args, "last", False)):
+        raise UsageError(None, "give either CLOUD/ASSET or --session/--last, not both")
+    if cloud:
+        s = default_session()
+        s.cloud, s.photo = cloud, None       # the demo's photo is of the demo room
+        return s
     if getattr(args, "session", None):
         return load_session(args.session)
     if getattr(args, "last", False):
@@ -124,8 +132,16 @@ class OffscreenViewer:
 
 
 def run_viewer(args) -> int:
+    from app.commands.asset_args import placement_options
+    from app.ui.files import open_at_start, startup_files
     size = parse_size(getattr(args, "size", "1280x800"))
-    session = open_session(args)
+    placement = placement_options(args)
+    cloud, asset = startup_files([p for p in (getattr(args, "cloud", None),
+                                              getattr(args, "asset", None)) if p])
+    if not (cloud or asset) and any(v is not None for v in placement):
+        raise UsageError(None, "--fit, --translate and --rotate place an ASSET or CLOUD given "
+                               "on the command line")
+    session = open_session(args, cloud, asset)
     script_path = getattr(args, "script", None)
     script = load_script(script_path) if script_path else None
     script_args = list(getattr(args, "script_arg", None) or [])
@@ -137,8 +153,12 @@ def run_viewer(args) -> int:
         raise UsageError(None, f"--screenshot must name a .png file (an .exr of the linear "
                                f"image is written beside it), got {shot!r}")
     if getattr(args, "offscreen", False):
-        return OffscreenViewer(session, size, script, relighter=Relighter,
-                               script_args=script_args).run(frames, shot)
+        viewer = OffscreenViewer(session, size, script, relighter=Relighter,
+                                 script_args=script_args)
+        if cloud or asset:
+            open_at_start(viewer.engine, asset, *placement)
+            viewer.fail_on_errors()
+        return viewer.run(frames, shot)
     try:
         from app.ui.window import ViewerWindow
         native = False if getattr(args, "no_native_dialogs", False) else None
@@ -149,4 +169,6 @@ def run_viewer(args) -> int:
     except Exception as exc:  # no usable display / GL 4.3: say so in one line
         raise ScanlightError(None, f"cannot open the viewer window ({type(exc).__name__}: {exc}); "
                                    "use --offscreen, or run under xvfb-run") from None
+    if cloud or asset:
+        open_at_start(viewer.engine, asset, *placement)
     return viewer.run(frames, shot)

@@ -241,9 +241,10 @@ class ViewerWindow:
 
     # -- files -----------------------------------------------------------------------------------
     def open_path(self, path: str) -> None:
-        """Open a dropped or chosen file by its kind: cloud, asset, photo, session or object."""
+        """Open a dropped or chosen file by its kind: cloud, asset (standing on the scan's
+        floor: app/io/placement.py), photo, session or object."""
         from app.ui.files import open_into
-        if open_into(self.session, path) == "session":
+        if open_into(self.session, path, room=self.engine.room) == "session":
             self.load_session(path)
         else:
             self.textures.drop(PHOTO)

@@ -23,6 +23,8 @@ COMMANDS = {
     "demo": ("app.commands.demo", "headless end-to-end run on the built-in demo scene"),
     "expand": ("app.commands.expand", "HDR-expand an LDR point cloud from one HDR photo"),
     "render": ("app.commands.render", "relight an asset with the cloud (PBGI) into EXR/PNG"),
+    "turntable": ("app.commands.turntable",
+                  "render an orbit (or camera path) of the relit asset: EXR/PNG frames + MP4"),
     "evaluate": ("app.commands.evaluate", "measure errors against ground truth"),
     "bench": ("app.commands.bench", "run a benchmark: " + ", ".join(BENCHES)),
 }
@@ -65,7 +67,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"scanlight {command}: error: {err}", file=sys.stderr)
         return err.exit_code
     except KeyboardInterrupt:
-        if len(COMMITTED) > commits:   # Ctrl-C came after the outputs were all in place
+        if command == "turntable":   # one output set per frame: the finished ones stay
+            done = f"; {len(COMMITTED) - commits} complete output set(s) kept, none partial"
+        elif len(COMMITTED) > commits:   # Ctrl-C came after the outputs were all in place
             done = " after its outputs were written (they are complete: " + ", ".join(
                 COMMITTED[-1]) + ")"
         else:

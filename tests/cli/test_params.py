@@ -23,6 +23,8 @@ MINIMAL = {
                "--out", "o.exr"],
     "expand": ["expand", "--cloud", "c.ply", "--photo", "p.exr", "--cameras", "cams.json",
                "--out", "o.ply"],
+    "turntable": ["turntable", "--cloud", "c.ply", "--object", "o.json", "--count", "4",
+                  "--out", "frames"],
     "evaluate": ["evaluate", "expansion", "--cloud", "c.ply", "--gt", "g.ply"],
     "bench table3": ["bench", "table3"],
     "bench classic": ["bench", "classic"],

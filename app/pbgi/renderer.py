@@ -246,15 +246,16 @@ class Relighter:
             self._splat_colors = want
         return splat
 
-    def background(self, camera, differential=None) -> np.ndarray:
-        """The room's point splats from ``camera``, (h, w, 4), alpha 1 where a splat covers;
-        with a ``differential`` (``Relighter.differential``) the asset's shadow and bounce on
-        the scan are in it. With an HDRI lighting the asset (``set_hdri``), the panorama
-        seen by ``camera`` instead."""
+    def background(self, camera, differential=None, eye_dome: bool = False) -> np.ndarray:
+        """The room's point splats from ``camera``, (h, w, 4), alpha 1 where a splat covers or
+        a small hole was filled (app/render/splat.py: surface splatting + push-pull); with a
+        ``differential`` (``Relighter.differential``) the asset's shadow and bounce on the scan
+        are in it; ``eye_dome``: eye-dome lighting on the splats (``view.eye_dome``). With an
+        HDRI lighting the asset (``set_hdri``), the panorama seen by ``camera`` instead."""
         if self.hdri is not None:
             from app.pbgi.hdri import hdri_backdrop
             return hdri_backdrop(self.hdri, camera)
-        return self._splats_showing(differential).render(camera)
+        return self._splats_showing(differential).render(camera, eye_dome=eye_dome)
 
     @property
     def asset_scene(self):
@@ -345,7 +346,7 @@ class Relighter:
         self._held.key = None
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
-               tile=None, pass_index: int = 0) -> RenderResult:
+               tile=None, pass_index: int = 0, pixels=None) -> RenderResult:
         """Relight the asset seen by ``camera`` (``tile``: a part of the image).
         ``pass_index`` moves each pixel's sample inside the pixel (gbuffer.pass_jitter; pass 0
         is the centre) and re-jitters the lobe micro-buffers (app/pbgi/lobe.py): the mean of
@@ -386,6 +387,8 @@ class Relighter:
         t0 = time.perf_counter()
         gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
         rec = gb["receivers"]
+        if pixels is not None:             # only these pixels' receivers (silhouette samples)
+            rec = rec[np.asarray(pixels, bool).reshape(-1)[RECEIVER.view(rec)["pixel"]]]
         rec = rec[np.argsort(z_order(RECEIVER.view(rec)["pixel"], w), kind="stable")]
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         n = len(rec)
@@ -423,7 +426,8 @@ class Relighter:
                    params.omega_tr_factor, params.parallax_tolerance,
                    tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, pass_jitter(pass_index),
-                   tuple(id(mt.normal_texture) for mt in materials), scene_key)
+                   tuple(id(mt.normal_texture) for mt in materials), scene_key,
+                   None if pixels is None else hash(np.asarray(pixels, bool).tobytes()))
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
             lobe = LobeSettings.for_microbuffer(m, params.glossy_below, pass_index)
@@ -477,23 +481,53 @@ class Relighter:
         return self._lobe
 
     def render_passes(self, camera, materials=None, params: RenderParams | None = None,
-                      passes: int = 1, tile=None, progress=None) -> RenderResult:
+                      passes: int = 1, tile=None, progress=None,
+                      edge_samples: int = 1) -> RenderResult:
         """The mean of ``passes`` renders (pass_index 0 .. passes - 1): anti-aliased pixels
         (alpha is the covered fraction and the radiance is premultiplied by it) and the lobe
-        buffers' noise averaged. ``progress(done, total)`` after each pass. Stats: the first
-        pass's, with the times and flags of all."""
+        buffers' noise averaged. ``edge_samples`` above ``passes``: the pixels a silhouette
+        crosses (app/pbgi/antialias.py) get that many samples in all, the further passes
+        gathering only their receivers. ``progress(done, total)`` after each pass. Stats: the
+        first pass's, with the times and flags of all."""
+        from app.pbgi.antialias import silhouette_pixels
         passes = max(int(passes), 1)
+        total = max(passes, int(edge_samples))
         acc, first, ms, completed = None, None, 0.0, True
-        for k in range(passes):
-            res = self.render(camera, materials, params, tile=tile, pass_index=k)
-            acc = res.image.astype(np.float64) if acc is None else acc + res.image
+        edges, edge_acc = None, None
+        for k in range(total):
+            if k == passes:                # the passes are done: now the silhouettes only
+                edges = silhouette_pixels(acc[..., 3] / passes, self._last_depth(camera, tile))
+                edge_acc = acc.copy()
+                if not edges.any():
+                    break
+            res = self.render(camera, materials, params, tile=tile, pass_index=k,
+                              pixels=edges)
+            if edges is None:
+                acc = res.image.astype(np.float64) if acc is None else acc + res.image
+            else:
+                edge_acc += res.image
             first = res.stats if first is None else first
             ms += res.stats.ms
             completed &= res.stats.completed
             if progress is not None:
-                progress(k + 1, passes)
+                progress(k + 1, total)
+        image = acc / passes
         stats = replace(first, ms=ms, completed=completed, passes=passes)
-        return RenderResult((acc / passes).astype(np.float32), stats)
+        if edges is not None:
+            image[edges] = edge_acc[edges] / total
+            stats.edge_pixels, stats.edge_samples = int(edges.sum()), total
+        return RenderResult(image.astype(np.float32), stats)
+
+    def _last_depth(self, camera, tile=None) -> np.ndarray:
+        """Distance from the camera of the last render's receivers, per tile pixel (inf where
+        none): the silhouettes inside the asset are where it jumps."""
+        x0, y0, w, h = tile if tile is not None else (0, 0, camera.width, camera.height)
+        depth = np.full(w * h, np.inf)
+        rec = self.last_receivers
+        if rec is not None and len(rec):
+            pos = rec[:, 0:3].astype(np.float64) + self.origin
+            depth[RECEIVER.view(rec)["pixel"]] = np.linalg.norm(pos - camera.position, axis=1)
+        return depth.reshape(h, w)
 
     def release(self) -> None:
         self.gbuffer.release()

@@ -125,6 +125,8 @@ class RenderStats:
     envmap_instead_of: str | None = None  # the mode asked for when the environment map took the
                                       # frame (app/pbgi/nearfield.py: the asset is far from all)
     clearance: float | None = None    # the asset's clearance in radii (when it was looked at)
+    edge_pixels: int = 0              # silhouette pixels sampled edge_samples times (render)
+    edge_samples: int = 1             # samples of those pixels (the others: passes)
     hdri: str | None = None           # the HDRI that lit the asset instead of the scan (its file)
     absent_features: tuple = ()       # BRDF features the gather variant left out (no material
                                       # uses them; pbgi.shader_variants)

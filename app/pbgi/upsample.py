@@ -166,7 +166,7 @@ class Upsampler:
 
 
 def render_upsampled(relighter, camera, materials=None, params=None, passes: int = 1,
-                     scale: float = 1.0, progress=None):
+                     scale: float = 1.0, progress=None, edge_samples: int = 1):
     """``Relighter.render_passes`` at ``scale`` of the camera's resolution, upsampled back to
     it (scale 1: render_passes itself, unchanged). The result's alpha is the full-resolution
     coverage and its radiance is premultiplied by it, as render_passes gives; stats are the
@@ -179,14 +179,17 @@ def render_upsampled(relighter, camera, materials=None, params=None, passes: int
         from app.errors import ScanlightError
         raise ScanlightError(None, f"render scale must be in (0, 1], got {scale}")
     if scale >= 1.0:
-        return relighter.render_passes(camera, materials, params, passes, progress=progress)
+        return relighter.render_passes(camera, materials, params, passes, progress=progress,
+                                       edge_samples=edge_samples)
     lo = relighter.render_passes(scaled_camera(camera, scale), materials, params, passes,
                                  progress=progress)
     mats = relighter.materials_for(materials)
     relighter.ctx.finish()
     t0 = time.perf_counter()
+    # the full-resolution coverage is box-filtered with max(passes, edge_samples) samples
+    # (G-buffers only: cheap); the radiance comes from the low-resolution render
     gbs = [relighter.gbuffer.render(camera, mats, None, pass_jitter(k))
-           for k in range(max(int(passes), 1))]
+           for k in range(max(int(passes), int(edge_samples), 1))]
     guide, cover = guide_texels(gbs, camera, relighter.origin)
     if relighter.upsampler is None:
         relighter.upsampler = Upsampler(relighter.ctx)

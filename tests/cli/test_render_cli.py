@@ -71,8 +71,9 @@ def test_render_matches_the_api(inputs):
     c = load_cloud(d / "room.ply")
     r.set_cloud(PointCloud(c.positions, c.normals, c.colors, hdr=True))
     r.set_asset(placed_mesh(load_object(d / "obj.json")))
-    api = r.render(load_camera(d / "cam.json"), [load_material(d / "mat.json")],
-                   RenderParams(microbuffer=8)).image
+    # the table's default: 8 samples on the silhouettes (app/pbgi/antialias.py)
+    api = r.render_passes(load_camera(d / "cam.json"), [load_material(d / "mat.json")],
+                          RenderParams(microbuffer=8), 1, edge_samples=8).image
     assert cli.shape == api.shape == (12, 16, 4)
     assert np.allclose(cli, api, rtol=1e-5, atol=1e-6)
     assert 0 < cli[..., 3].sum() < cli[..., 3].size and np.array_equal(cli[..., 3], api[..., 3])
@@ -104,8 +105,10 @@ def test_render_scale_renders_the_gi_smaller_and_upsamples_it(inputs, capsys):
     from dataclasses import replace
     cam = replace(cam, width=32, height=24)
     api = render_upsampled(r, cam, [load_material(d / "mat.json")], RenderParams(microbuffer=8),
-                           1, 0.5).image
-    full = r.render(cam, [load_material(d / "mat.json")], RenderParams(microbuffer=8)).image
+                           1, 0.5, edge_samples=8).image
+    # the coverage: box-filtered at full resolution with the 8 edge samples' jitter
+    full = r.render_passes(cam, [load_material(d / "mat.json")], RenderParams(microbuffer=8),
+                           8).image
     assert cli.shape == api.shape == (24, 32, 4)
     assert np.allclose(cli, api, rtol=1e-5, atol=1e-6)
     assert np.array_equal(cli[..., 3], full[..., 3])
@@ -123,15 +126,18 @@ def test_render_passes_average_jittered_renders(inputs, capsys):
     (The asset's shadow on the scan is off here: test_render_layers_for_compositing.)"""
     from app.pbgi.renderer import Relighter, RenderParams
     d = inputs
+    # --edge-samples as many as the passes (nothing more on the silhouettes), then 1 (one
+    # sample per pixel): the passes alone (tests/pbgi/test_antialias.py has the edge samples)
     assert main(_args(d, "--microbuffer", "8", "--passes", "4", "--stats", str(d / "st.json"),
-                      "--background", "--size", "32x24", "--differential", "false")) == 0
+                      "--background", "--size", "32x24", "--differential", "false",
+                      "--edge-samples", "4")) == 0
     assert "4 passes" in capsys.readouterr().out
     stats = json.loads((d / "st.json").read_text())
     assert stats["passes"] == 4 and stats["completed"] is True
     four = read_exr(d / "out.exr").rgb
     four_alpha = read_exr_layers(d / "out.exr")[""][..., 3]
     assert main(_args(d, "--microbuffer", "8", "--background", "--size", "32x24",
-                      "--differential", "false")) == 0
+                      "--differential", "false", "--edge-samples", "1")) == 0
     one = read_exr(d / "out.exr").rgb
     one_alpha = read_exr_layers(d / "out.exr")[""][..., 3]
     assert np.isfinite(four).all() and four.shape == one.shape

@@ -171,7 +171,8 @@ def render_side(r, side: Side, loaded, camera, materials, values: dict, given: d
         r.set_hdri(loaded)
     try:
         res = render_upsampled(r, camera, materials, RenderParams.from_settings(vals),
-                               int(vals["pbgi.passes"]), float(vals["pbgi.render_scale"]))
+                               int(vals["pbgi.passes"]), float(vals["pbgi.render_scale"]),
+                               edge_samples=int(vals["pbgi.edge_samples"]))
         image = over(res.image, r.background(camera)) if background else res.image
         return image, res.stats
     finally:

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from app.errors import ScanlightError
+from app.render.tonemap import DEFAULT as DEFAULT_TONEMAP, NAMES as TONEMAPPERS
 
 KINDS = ("float", "int", "bool", "choice")
 REDO = ("gi", "display", "room", "job", "none")
@@ -187,9 +188,13 @@ PARAMS: tuple[Param, ...] = (
     # -- display (the viewer) -------------------------------------------------------------------
     _f("view.exposure", 0.0, "Exposure before the tone mapper: radiance x 2^EV.", -10.0, 10.0,
        "EV", redo="display"),
-    _c("view.tonemap", "pbr-neutral", "Tone mapper: Khronos PBR Neutral keeps base colours "
-       "recognisable and rolls off highlights; 'clamp' shows linear values clipped at 1.",
-       ("pbr-neutral", "clamp"), redo="display"),
+    _c("view.tonemap", DEFAULT_TONEMAP, "Tone mapper (app/render/tonemap.py): Khronos PBR "
+       "Neutral keeps base colours recognisable and rolls off highlights; 'aces' is Stephen "
+       "Hill's fitted ACES RRT+ODT; 'agx' is Blender's AgX base (polynomial sigmoid); 'clamp' "
+       "shows linear values clipped at 1.", TONEMAPPERS, redo="display"),
+    _b("view.false_colour", False, "Show the luminance x 2^EV in false colour: bands of stops "
+       "around middle grey 0.18 (legend in the Display panel) instead of the tone-mapped image.",
+       label="false colour EV", redo="display"),
     _c("view.cloud", "ldr", "Which room colours to show: the LDR scan, the HDR-expanded cloud, "
        "or in false colour the difference map log2(Y_hdr / Y_ldr) (paper Fig. 1) or each "
        "point's provenance (where its HDR colour came from). All but 'ldr' light the asset with "
@@ -197,9 +202,14 @@ PARAMS: tuple[Param, ...] = (
        redo="gi"),
     _f("view.fov_y", 50.0, "Vertical field of view of the viewport camera.", 10.0, 120.0, "deg",
        label="field of view", redo="gi"),
-    _f("view.splat_scale", 2.0, "Radius multiplier of the room's point splats (1 = twice the "
-       "median point spacing; 2 closes the gaps of a random scan up close).", 0.25, 4.0, "x",
-       label="splat size", redo="room"),
+    _f("view.splat_scale", 1.0, "Radius multiplier of the room's point splats (1 = each "
+       "point's own radius, from its local spacing; the hole filling closes what gaps remain, "
+       "larger values blur and widen the outline).", 0.25, 4.0, "x", label="splat size",
+       redo="room"),
+    _b("view.eye_dome", False, "Eye-dome lighting on the room backdrop: darkens each pixel by "
+       "how far it lies behind its neighbours (as Potree and CloudCompare do) for depth "
+       "perception of the scan; the asset is not shaded.", label="eye-dome lighting",
+       redo="room"),
     _b("view.show_cameras", True, "Draw the capture cameras as gizmos.", redo="display"),
     _b("view.show_gizmo", True, "Show the asset transform gizmo in the viewport.",
        redo="display"),
@@ -248,6 +258,11 @@ PARAMS: tuple[Param, ...] = (
     _i("pbgi.passes", 1, "Passes averaged in a final render (`scanlight render`): each samples "
        "every pixel at another point inside it (anti-aliased edges and mirror images) and "
        "rotates the lobe micro-buffers (their noise averages out); the time grows with them.",
+       1, 64, "", redo="none", ui=False),
+    _i("pbgi.edge_samples", 8, "Samples per pixel on the asset's silhouettes in a final render "
+       "(`scanlight render`, `turntable`): where coverage or depth changes inside a pixel, "
+       "more jittered samples of the G-buffer are gathered there only, so each pixel is "
+       "box-filtered over its footprint and alpha is its true coverage; 1 = pixel centres only.",
        1, 64, "", redo="none", ui=False),
     _i("pbgi.idle_passes", 4, "Passes the viewer averages while the view stays still, after "
        "the first full-resolution image (the same jitter as `render --passes`); 1 = none.",

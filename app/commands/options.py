@@ -34,8 +34,12 @@ RENAMED = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th", "hdr.neighb
 
 # command -> {flag: key}
 COMMAND_FLAGS: dict[str, dict[str, str]] = {
-    "render": _flags(("pbgi.quality",) + RENDER_KEYS + ("pbgi.render_scale", "pbgi.passes",
-                                                        "pbgi.differential", "view.exposure")),
+    "render": _flags(("pbgi.quality",) + RENDER_KEYS + (
+        "pbgi.render_scale", "pbgi.passes", "pbgi.edge_samples", "pbgi.differential",
+        "view.exposure", "view.tonemap", "view.eye_dome")),
+    "turntable": _flags(("pbgi.quality",) + RENDER_KEYS + (
+        "pbgi.render_scale", "pbgi.passes", "pbgi.edge_samples", "pbgi.differential",
+        "view.exposure", "view.tonemap", "view.eye_dome", "view.fov_y"), {"view.fov_y": "--fov"}),
     "expand": _flags(EXPAND_KEYS),
     "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha")),
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
@@ -49,6 +53,7 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
 }
 # (command, key) -> help where the table's text does not fit the command's use of the value
 HELP = {
+    ("turntable", "view.fov_y"): "vertical field of view of the orbit's camera (not with --path)",
     ("evaluate", "hdr.alpha"): "the scan's alpha: scale of the evaluated cloud relative to the "
                                "ground truth; not set: measured on the well-exposed points",
     ("evaluate", "hdr.threshold_ldr"): "t_l: points whose LDR luminance exceeds this count as "

@@ -1,17 +1,27 @@
 """``scanlight render``: relight an asset with a point cloud (PBGI or the environment-map
 baseline) and write a linear EXR, optionally a tone-mapped PNG and a stats JSON.
 
-    scanlight render --cloud room.ply --object obj.json [--material mat.json] --camera cam.json
+    scanlight render --cloud room.ply --object obj.json|model.glb|model.obj [--fit S]
+                     [--translate X,Y,Z] [--rotate X,Y,Z] [--material mat.json] --camera cam.json
                      [--mode classic|mipmapped|hybrid|envmap] [--microbuffer 24] --out img.exr
-                     [--png img.png --exposure 0] [--stats stats.json] [--size WxH]
-                     [--background] [--budget-mb 1024] [--omega-tr-factor 32]
+                     [--png img.png --exposure 0 --tonemap pbr-neutral|aces|agx|clamp]
+                     [--stats stats.json] [--size WxH]
+                     [--background [--eye-dome on]] [--budget-mb 1024] [--omega-tr-factor 32]
                      [--parallax-tolerance 1] [--envmap-face 128] [--glossy-below 0.5]
                      [--passes 1] [--quality preview|balanced|final] [--render-scale 1]
+
+``--object`` is a mesh opened directly (.glb/.gltf/.obj, or the built-in sphere/knot): in the
+file's own units (glTF metres; OBJ read as metres) unless ``--fit S`` scales its largest extent to
+S metres, rotated by ``--rotate``, stood on the scan's floor below the room's centre, then moved
+by ``--translate`` (app/commands/asset_args.py, app/io/placement.py: how the floor is found); or
+an object JSON with its own placement, for scripted use. The stats JSON's ``asset`` says where it
+went (floor height, scale, bounds).
 
 The rendering options and their defaults are the parameter table's (app/params.py, the same as
 the viewer's; app/commands/options.py maps the flags).
 
-PNG: exposure in stops, then the Khronos PBR Neutral tone mapper and sRGB (app.render.tonemap).
+PNG: exposure in stops, then the tone mapper of --tonemap (default Khronos PBR Neutral; aces,
+agx, clamp: app.render.tonemap) and sRGB.
 ``--background`` composites the object over the room's point splats seen from the same camera,
 with the asset's shadow and bounce on the scan (``--differential``, on by default:
 app/pbgi/asset_scene.py); without it the background is black (alpha is in the PNG).
@@ -39,16 +49,18 @@ from pathlib import Path
 import numpy as np
 
 from app.camera import MAX_PIXELS, parse_size
+from app.commands.asset_args import add_object_arguments, check_object_args, load_placed_asset
 from app.commands.options import add_param_options, param_values
 from app.errors import UsageError
+from app.render.alpha import over
+from app.render.tonemap import get as tonemapper_named, tonemap_to_srgb8
 
 log = logging.getLogger(__name__)
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--cloud", required=True, metavar="C.ply", help="point cloud (PLY/PCD/XYZ)")
-    parser.add_argument("--object", required=True, metavar="O.json",
-                        help='object JSON: {"mesh": ..., "translate": ..., "scale": ...}')
+    add_object_arguments(parser)
     parser.add_argument("--material", metavar="M.json",
                         help="Disney material JSON for the whole asset (default: its own)")
     parser.add_argument("--camera", required=True, metavar="CAM.json", help="camera JSON")
@@ -62,6 +74,18 @@ def add_arguments(parser) -> None:
                         help="also a multi-layer EXR for compositing: beauty, asset, background, "
                              "shadow (the asset's shadow/bounce on the scan), indirect (the "
                              "asset's light from itself); channels <layer>.R/G/B/A")
+    parser.add_argument("--hdri", metavar="PANO.exr",
+                        help="light the asset with this equirectangular HDR panorama instead of "
+                             "the scan (distant light, gathered through the environment map; the "
+                             "background shows it)")
+    parser.add_argument("--hdri-rotation", type=float, default=0.0, metavar="DEG",
+                        help="turn the HDRI about +y, counter-clockwise seen from above "
+                             "(default 0: its centre column looks along -z)")
+    parser.add_argument("--compare", nargs=2, metavar=("A", "B"),
+                        help="render twice and write A | B side by side (--out), with the "
+                             "difference and its legend (--png) and the metrics of B against A "
+                             "(--stats); A and B are mode:NAME, quality:NAME, cloud:FILE or "
+                             "hdri:FILE (app/commands/compare.py)")
     add_param_options(parser, "render")
 
 
@@ -78,14 +102,22 @@ def _check_args(args) -> dict:
         if w * h > MAX_PIXELS:
             raise UsageError(None, f"--size {w}x{h} is larger than the limit of {MAX_PIXELS:,} "
                                    "pixels (8192x8192)")
-    return param_values(args, "render")
+    values = param_values(args, "render")
+    if args.compare:
+        from app.commands.compare import parse_side
+        for text in args.compare:
+            parse_side(text)
+        if args.layers:
+            raise UsageError(None, "--layers and --compare cannot be combined: --compare writes "
+                                   "its own side-by-side image")
+    check_object_args(args)          # before the cloud loads: the flags, then the file
+    return values
 
 
 def run(args) -> int:
     from app.camera import load_camera
     from app.io.exr import write_exr
     from app.io.files import write_json
-    from app.io.formats import load_object, placed_mesh
     from app.io.outputs import OutputSet, check_outputs
     from app.io.pointcloud import load_cloud
     from app.material import load_material
@@ -93,27 +125,42 @@ def run(args) -> int:
     from app.pbgi.upsample import render_upsampled
 
     values = _check_args(args)
+    from app.commands.compare import input_files, parse_side
     check_outputs({"--cloud": args.cloud, "--object": args.object, "--material": args.material,
-                   "--camera": args.camera},
+                   "--camera": args.camera, "--hdri": args.hdri,
+                   **input_files([parse_side(t) for t in args.compare or ()])},
                   {"--out": args.out, "--png": args.png, "--stats": args.stats,
                    "--layers": args.layers})
     exposure = values["view.exposure"]
+    tonemapper = values["view.tonemap"]
     camera = load_camera(args.camera)
     if args.size:
         w, h = parse_size(args.size)
         camera = replace(camera, width=w, height=h)
-    spec = load_object(args.object)
     materials = [load_material(args.material)] if args.material else None
     cloud = load_cloud(args.cloud)
-    mesh = placed_mesh(spec)
+    mesh, asset = load_placed_asset(args, cloud)
 
     r = Relighter()
     r.set_cloud(cloud)
     r.set_asset(mesh)
+    if args.hdri:
+        from app.pbgi.hdri import load_hdri
+        r.set_hdri(load_hdri(args.hdri, args.hdri_rotation))
+    if args.compare:
+        from app.commands.compare import run_compare
+        from app.commands.options import given_values
+        return run_compare(args, r, camera, materials, values, given_values(args, "render"),
+                           {"cloud": str(args.cloud), "object": str(args.object),
+                            "asset": asset, "camera": camera.to_dict(),
+                            "renderer": r.ctx.info.get("GL_RENDERER"),
+                            "tonemapper": tonemapper_named(tonemapper).title,
+                            "exposure": exposure})
     params = RenderParams.from_settings(values)
     passes = int(values["pbgi.passes"])
     scale = float(values["pbgi.render_scale"])
-    res = render_upsampled(r, camera, materials, params, passes, scale,
+    edge_samples = int(values["pbgi.edge_samples"])
+    res = render_upsampled(r, camera, materials, params, passes, scale, edge_samples=edge_samples,
                            progress=(lambda k, n: log.info("pass %d/%d", k, n)) if passes > 1
                            else None)
     img = res.image
@@ -126,25 +173,27 @@ def run(args) -> int:
     rgba = img.copy()
     diff = None
     if (args.background or args.layers) and values["pbgi.differential"] and \
-            params.mode != "envmap":
+            params.mode != "envmap" and not args.hdri:
         t = time.perf_counter()
         diff = r.differential(materials, params)
         log.info("the asset's shadow and bounce on %d scan points: %.1f s", len(diff.index),
                  time.perf_counter() - t)
     if args.background:
-        rgba = over(img, r.background(camera, diff))
+        rgba = over(img, r.background(camera, diff, eye_dome=values["view.eye_dome"]))
     layers = None
     if args.layers:
-        layers = render_layers(r, camera, materials, params, passes, img, diff, scale)
+        layers = render_layers(r, camera, materials, params, passes, img, diff, scale,
+                               edge_samples)
 
     stats_diff = None if diff is None else {"points": int(len(diff.index)),
                                             "seconds": round(diff.seconds, 3)}
 
     stats = st.to_dict()                  # app.pbgi.stats.RenderStats, plus the run's inputs
     stats.update({"cloud": str(args.cloud), "points": len(cloud), "object": str(args.object),
+                  "asset": asset,
                   "triangles": int(mesh.n_faces), "camera": camera.to_dict(),
                   "renderer": r.ctx.info.get("GL_RENDERER"),
-                  "tonemapper": "Khronos PBR Neutral", "exposure": exposure,
+                  "tonemapper": tonemapper_named(tonemapper).title, "exposure": exposure,
                   "differential": stats_diff,
                   "bsh": {k: v for k, v in r.hierarchy.stats.items()
                           if isinstance(v, (int, float, str))}})
@@ -154,8 +203,7 @@ def run(args) -> int:
         write_exr(outs.temp("--out"), rgba)
         if args.png:
             from app.io.images import write_png
-            from app.render.tonemap import tonemap_to_srgb8
-            write_png(outs.temp("--png"), tonemap_to_srgb8(rgba, exposure))
+            write_png(outs.temp("--png"), tonemap_to_srgb8(rgba, exposure, tonemapper))
         if args.stats:
             write_json(outs.temp("--stats"), stats)
         if layers is not None:
@@ -174,17 +222,8 @@ def run(args) -> int:
     return 0
 
 
-def over(front: np.ndarray, back: np.ndarray) -> np.ndarray:
-    """``front`` (premultiplied RGBA: passes average coverage) over ``back``."""
-    out = front.copy()
-    a = front[..., 3:4]
-    out[..., :3] = front[..., :3] + back[..., :3] * (1.0 - a)
-    out[..., 3] = np.maximum(front[..., 3], back[..., 3])
-    return out
-
-
 def render_layers(r, camera, materials, params, passes: int, asset: np.ndarray,
-                  diff, scale: float = 1.0) -> dict:
+                  diff, scale: float = 1.0, edge_samples: int = 1) -> dict:
     """The compositing layers (premultiplied RGBA, linear; see the module docstring):
     beauty = asset over the background with the asset's shadow; asset = the relit asset alone
     (alpha = coverage); background = the scan's splats as scanned; shadow = what the asset
@@ -201,7 +240,7 @@ def render_layers(r, camera, materials, params, passes: int, asset: np.ndarray,
     if params.asset_bounces > 0 and r.walks_asset(params):   # else no bounce to take out
         from app.pbgi.upsample import render_upsampled
         dark = render_upsampled(r, camera, materials, replace(params, asset_bounces=0), passes,
-                                scale)
+                                scale, edge_samples=edge_samples)
         indirect[..., :3] = asset[..., :3] - dark.image[..., :3]
     return {"beauty": over(asset, lit), "asset": asset, "background": plate,
             "shadow": shadow, "indirect": indirect}

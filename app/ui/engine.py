@@ -209,7 +209,7 @@ class ViewerEngine:
 
     def _apply_colors(self) -> None:
         which = self.session.settings["view.cloud"]
-        self.view.set_colors(self.cloud.colors(which))
+        self.view.set_colors(self.cloud.colors(which), categorical=which == "provenance")
         self._diff_shown_key = None
         self._room_dirty = True
         lit = self.cloud.lighting(which)
@@ -256,6 +256,12 @@ class ViewerEngine:
             return np.asarray(self.session.transform.translate, float), 0.5
         lo, hi = (np.asarray(v, float) for v in self.mesh.bounds())
         return (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+
+    def room(self):
+        """The scan's floor and centre (app/io/placement.py: Room), where a mesh opened directly
+        stands (drag-and-drop, ``scanlight view CLOUD ASSET``)."""
+        from app.io.placement import room_of
+        return room_of(self.cloud.ldr)
 
     def frame_asset(self) -> None:
         c, r = self.asset_sphere()
@@ -362,7 +368,8 @@ class ViewerEngine:
         info = {"room": False, "gi": False}
         if self._room_dirty:
             t = time.perf_counter()
-            self.view.draw_room(cam, self.session.settings["view.splat_scale"])
+            self.view.draw_room(cam, self.session.settings["view.splat_scale"],
+                                self.session.settings["view.eye_dome"])
             self.view.draw_gbuffer(cam)
             self.timings["room_ms"] = (time.perf_counter() - t) * 1e3
             self._room_dirty = self._gbuffer_dirty = False
@@ -387,7 +394,8 @@ class ViewerEngine:
             self.reset_gl_state()
             info["differential"] = self._advance_differential(budget)
         if self._room_dirty:                # the differential changed the splats' colours
-            self.view.draw_room(cam, self.session.settings["view.splat_scale"])
+            self.view.draw_room(cam, self.session.settings["view.splat_scale"],
+                                self.session.settings["view.eye_dome"])
             self._room_dirty = False
             self._composite_dirty = True
         self._upload_gi()
@@ -448,7 +456,8 @@ class ViewerEngine:
         self.view.composite(cam, s["view.exposure"], s["view.tonemap"],
                             raw_room=self.cloud.false_colour(s["view.cloud"]),
                             unavailable=not self.renderer_available or self.gi_failed,
-                            asset_rect=rect, label_rect=label, room=room)
+                            asset_rect=rect, label_rect=label, room=room,
+                            false_colour=s["view.false_colour"])
         self._composite_dirty = self._asset_dirty = False
 
     # -- the asset's shadow and bounce on the scan ---------------------------------------------
@@ -547,7 +556,8 @@ class ViewerEngine:
             self.gi.finish()
             self._advance_differential(float("inf"))   # batch images never depend on timing
             if self._room_dirty:
-                self.view.draw_room(cam, self.session.settings["view.splat_scale"])
+                self.view.draw_room(cam, self.session.settings["view.splat_scale"],
+                                    self.session.settings["view.eye_dome"])
                 self._room_dirty = False
         self._upload_gi()
         self._composite(cam)
@@ -598,7 +608,7 @@ class ViewerEngine:
             img = self.view.splat.render(Camera(pos, pos + np.asarray(d, float), up, 90.0,
                                                 face, face))
             out[r * face:(r + 1) * face, c * face:(c + 1) * face] = tonemap_to_srgb8(
-                img[..., :3], ev)
+                img[..., :3], ev, self.session.settings["view.tonemap"])
         return out
 
 def default_session() -> Session:

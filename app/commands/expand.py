@@ -74,14 +74,23 @@ def expand_params(args):
 
 
 class _StderrProgress:
-    """One line per stage and per 10% on stderr (no carriage-return tricks: logs stay readable)."""
+    """On a terminal, a bar (app/commands/progress.py) with the stage beside it; elsewhere (a
+    log, a pipe, -q) one line per stage and per 10% on stderr, with no carriage-return tricks,
+    so logs stay readable."""
 
-    def __init__(self, stream=None):
+    def __init__(self, stream=None, bar=None):
         self.stream = stream or sys.stderr
+        self.bar = bar
         self.stage = None
         self.step = -1
 
     def __call__(self, fraction: float, stage: str) -> None:
+        if self.bar is not None:
+            if stage != self.stage:
+                self.stage = stage
+                self.bar.set_postfix_str(stage)
+            self.bar.update(max(0, int(round(fraction * 100)) - self.bar.n))
+            return
         step = int(fraction * 10)
         if stage != self.stage or step > self.step:
             self.stage, self.step = stage, step
@@ -92,6 +101,7 @@ def run(args) -> int:
     from app.hdr.job import ExpandRequest, load_cameras, run_expand_request
     from app.io.files import require_file
     from app.io.outputs import OutputSet, check_outputs
+    from app.commands.progress import bar_wanted, progress, quiet_of
     from app.jobs import Job, JobState
 
     params = expand_params(args)
@@ -111,22 +121,23 @@ def run(args) -> int:
                             str(outs.temp("--out")),
                             str(outs.temp("--report")) if args.report else None,
                             return_cloud=False, output_name=str(out))
-        show = _StderrProgress()
         job = Job(run_expand_request, req, args.worker)
         job.start()
         shown = 0
-        try:
-            while True:
-                st = job.wait(timeout=0.2)
-                for f, stage in job.history[shown:]:
-                    show(f, stage)
-                shown = len(job.history)
-                if job.done:
-                    break
-        except KeyboardInterrupt:
-            job.cancel()
-            job.wait(timeout=job.kill_after + 1)
-            raise
+        with progress(100, "expand", unit="%", quiet=quiet_of(args)) as bar:
+            show = _StderrProgress(bar=bar if bar_wanted(quiet_of(args)) else None)
+            try:
+                while True:
+                    st = job.wait(timeout=0.2)
+                    for f, stage in job.history[shown:]:
+                        show(f, stage)
+                    shown = len(job.history)
+                    if job.done:
+                        break
+            except KeyboardInterrupt:
+                job.cancel()
+                job.wait(timeout=job.kill_after + 1)
+                raise
         if st.state is JobState.FAILED:
             if isinstance(job.error, ScanlightError):
                 raise job.error

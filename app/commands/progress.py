@@ -1,5 +1,5 @@
-"""Progress bars for the long command-line jobs (``turntable`` now; ``render --passes`` and
-``expand`` can use the same helper).
+"""Progress bars for the long command-line jobs: ``turntable`` (frames), ``render`` (passes and
+silhouette samples) and ``expand`` (fraction done, with the stage beside the bar).
 
 One bar on stderr (stdout stays for the command's result lines), drawn by tqdm, and only where
 someone watches it: not when stderr is not a terminal (a render farm's log, a pipe, the tests)

@@ -160,9 +160,18 @@ def run(args) -> int:
     passes = int(values["pbgi.passes"])
     scale = float(values["pbgi.render_scale"])
     edge_samples = int(values["pbgi.edge_samples"])
-    res = render_upsampled(r, camera, materials, params, passes, scale, edge_samples=edge_samples,
-                           progress=(lambda k, n: log.info("pass %d/%d", k, n)) if passes > 1
-                           else None)
+    samples = max(passes, edge_samples if scale >= 1 else passes)
+
+    def step(k, n, bar):
+        bar.update()
+        if passes > 1:
+            log.info("pass %d/%d", k, n)
+
+    from app.commands.progress import progress, quiet_of
+    with progress(samples, "render", unit="pass", quiet=quiet_of(args)) as bar:
+        res = render_upsampled(r, camera, materials, params, passes, scale,
+                               edge_samples=edge_samples,
+                               progress=lambda k, n: step(k, n, bar))
     img = res.image
     st = res.stats
     if not st.completed:

@@ -41,6 +41,7 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
         "pbgi.render_scale", "pbgi.passes", "pbgi.edge_samples", "pbgi.differential",
         "view.exposure", "view.tonemap", "view.eye_dome", "view.fov_y"), {"view.fov_y": "--fov"}),
     "expand": _flags(EXPAND_KEYS),
+    "demo": _flags(("view.tonemap",)),
     "evaluate": _flags(("hdr.threshold_ldr", "hdr.alpha")),
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
                             "pbgi.parallax_tolerance")),

@@ -48,8 +48,10 @@ def add_arguments(parser) -> None:
                         help="use the viewer's own file browser instead of the desktop's "
                              "dialogs (zenity / kdialog)")
     parser.add_argument("--out", default="scanlight-demo", help="output folder of the headless fallback")
-    parser.add_argument("--demo-size", type=int, default=128,
-                        help="render size of the headless fallback demo")
+    from app.demo.pipeline import DEFAULT_SIZE
+    parser.add_argument("--demo-size", type=int, default=DEFAULT_SIZE,
+                        help=f"render size of the headless fallback demo (default {DEFAULT_SIZE}, "
+                             "as scanlight demo)")
 
 
 def run(args) -> int:

@@ -6,7 +6,10 @@
    against the ground truth;
 3. the sphere relit by the LDR, expanded and ground-truth clouds (Hybrid PBGI, or Classic where
    Hybrid is unavailable), composited over the room, with the relit-render error (Table 2);
-4. the room itself as point splats: LDR, HDR and the difference map (paper Fig. 1).
+4. the room itself as point splats: LDR, HDR, ground truth and the difference map (paper
+   Fig. 1);
+5. the asset (diffuse and glossy) lit by the expanded cloud in every render mode, and
+   ``contact_sheet.png``: all of the above on one labelled sheet (app/demo/contact_sheet.py).
 
 Every PNG goes through ``run_demo``'s ``tonemapper`` (one of app.render.tonemap.TONEMAPPERS;
 default Khronos PBR Neutral, the viewer's default), named in the report; the EXRs are linear.
@@ -29,6 +32,8 @@ from app.render.tonemap import DEFAULT as DEFAULT_TONEMAP, get as tonemap_get
 
 log = logging.getLogger(__name__)
 
+DEFAULT_SIZE = 192        # px of the renders: legible on the contact sheet (README: timings)
+HDR_ROOM_EXPOSURE = -2.0  # EV of the HDR and ground-truth room PNGs: lights 4-6 stops over 1
 
 _last_stage = [None]
 
@@ -49,6 +54,29 @@ def _save_png(path: Path, linear_rgb: np.ndarray, exposure: float = 0.0,
     write_png(path, tonemap_to_srgb8(linear_rgb, exposure, tonemapper))
 
 
+def _over(rgba: np.ndarray, background: np.ndarray) -> np.ndarray:
+    """The asset's render (A = coverage) over the room behind it."""
+    return rgba[..., :3] * rgba[..., 3:] + background * (1 - rgba[..., 3:])
+
+
+def _mode_renders(relighter, cloud, cam) -> dict:
+    """{(material kind, mode): linear image over the room}: the asset lit by ``cloud`` in every
+    render mode, for the contact sheet's material rows."""
+    from app.demo.contact_sheet import ASSET_MATERIALS
+    from app.material import PRESETS, material_from_dict
+    from app.params import RENDER_MODES
+    from app.pbgi.renderer import RenderParams
+    relighter.set_cloud(cloud)              # same points as the last cloud: recolours the BSH
+    background = relighter.splat_renderer().render(cam)[..., :3]
+    out = {}
+    for kind, preset in ASSET_MATERIALS.items():
+        mat = material_from_dict({"name": preset, **PRESETS[preset]})
+        for mode in RENDER_MODES:
+            img = relighter.render(cam, [mat], RenderParams(mode=mode, microbuffer=16)).image
+            out[(kind, mode)] = _over(img, background)
+    return out
+
+
 def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
     """The demo as the files the CLI commands take; returns their paths."""
     from app.io.exr import write_exr
@@ -66,7 +94,7 @@ def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
     return files
 
 
-def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
+def run_demo(out: Path, size: int = DEFAULT_SIZE, n_points: int = 200_000,
              face_size: int | None = None, tonemapper: str = DEFAULT_TONEMAP) -> dict:
     """Every stage on the demo scene; ``face_size`` None: the table's ``hdr.face_size``;
     ``tonemapper``: the PNGs' tone mapper (default PBR Neutral)."""
@@ -107,13 +135,15 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
     mesh = placed_mesh(object_from_dict(room.default_object("sphere"), out, "demo object"))
     clouds = {"expanded": scaled(exp.cloud, scene.alpha), "ldr": scaled(scene.ldr, scene.alpha)}
     relighter = Relighter()
-    renders = {}
+    renders, backgrounds, closeups = {}, {}, {}
     for view, cam in room.default_views(size, size).items():
         errs, images = relit_errors(clouds, scene.gt, mesh, cam, mode=mode, relighter=relighter)
         renders[view] = errs
-        background = relighter.splat_renderer().render(cam)[..., :3]
+        background = backgrounds[view] = relighter.splat_renderer().render(cam)[..., :3]
+        if view == "closeup":
+            closeups = images
         for name, img in images.items():
-            comp = img[..., :3] * img[..., 3:] + background * (1 - img[..., 3:])
+            comp = _over(img, background)
             from app.io.exr import write_exr
             write_exr(out / f"relit_{view}_{name}.exr", img)   # RGBA: A = coverage
             _save_png(out / f"relit_{view}_{name}.png", comp, tonemapper=tonemapper)
@@ -123,19 +153,35 @@ def run_demo(out: Path, size: int = 128, n_points: int = 200_000,
                        f"expanded {errs['expanded']['render_rel_rms']:.3f}, "
                        f"LDR {errs['ldr']['render_rel_rms']:.3f}")
 
-    # The room itself: LDR / HDR / difference (paper Fig. 1), seen from the 'whole' view.
+    # The room itself: LDR / HDR / ground truth / difference (paper Fig. 1), seen from a top
+    # corner so that the clipped ceiling light and window are in view.
     from app.render.splat import SplatRenderer
-    cam = room.default_views(size, size)["whole"]
+    cam = room.overview_camera(size, size)
     splat = SplatRenderer(exp.cloud)
     hdr_img = splat.render(cam)[..., :3] / scene.alpha
     splat.set_colors(scene.ldr.colors)
     ldr_img = splat.render(cam)[..., :3] / scene.alpha
+    splat.set_colors(scene.gt.colors)
+    gt_img = splat.render(cam)[..., :3]
     _save_png(out / "room_ldr.png", ldr_img, tonemapper=tonemapper)
-    _save_png(out / "room_hdr.png", hdr_img, exposure=-2.0, tonemapper=tonemapper)
+    _save_png(out / "room_hdr.png", hdr_img, exposure=HDR_ROOM_EXPOSURE, tonemapper=tonemapper)
+    _save_png(out / "room_gt.png", gt_img, exposure=HDR_ROOM_EXPOSURE, tonemapper=tonemapper)
     _save_png(out / "room_difference.png", np.abs(hdr_img - ldr_img), tonemapper=tonemapper)
     splat.release()
+
+    t = time.perf_counter()
+    modes = _mode_renders(relighter, clouds["expanded"], room.default_views(size, size)["closeup"])
+    timings["modes_s"] = time.perf_counter() - t
+    from app.demo.contact_sheet import demo_sheet
+    from app.io.images import write_png
+    relit = {name: _over(img, backgrounds["closeup"]) for name, img in closeups.items()}
+    sheet, layout = demo_sheet({"ldr": ldr_img, "hdr": hdr_img, "gt": gt_img}, relit, modes,
+                               tonemapper, HDR_ROOM_EXPOSURE, mode, size)
+    write_png(out / "contact_sheet.png", sheet)
 
     return {"scene": {k: str(v) for k, v in files.items()}, "points": len(scene.gt),
             "alpha": scene.alpha, "expansion": exp.report, "point_errors": point_err,
             "render_mode": mode, "render_errors": renders, "timings": timings, "summary": summary,
-            "tonemapper": tonemap_get(tonemapper).title}
+            "tonemapper": tonemap_get(tonemapper).title, "tonemap": tonemapper,
+            "contact_sheet": {"file": str(out / "contact_sheet.png"), "size": layout.size,
+                              "tiles": layout.tiles}}

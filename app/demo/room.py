@@ -269,6 +269,13 @@ def default_views(width: int = 128, height: int = 128) -> dict[str, Camera]:
     }
 
 
+def overview_camera(width: int = 128, height: int = 128) -> Camera:
+    """The room from a top corner: the ceiling light, the window and the boxes in one view,
+    so the demo's LDR / HDR / difference images show where the scan clipped (paper Fig. 1)."""
+    return Camera(np.array([1.8, 2.0, 1.8]), np.array([-1.2, 1.3, -0.6]), fov_y_deg=70,
+                  width=width, height=height)
+
+
 def default_object(kind: str = "sphere") -> dict:
     """Object JSON (see README): the sphere, or the procedural non-convex asset ("knot")."""
     return {"mesh": kind, "translate": list(OBJECT_CENTRE), "scale": 0.8}

@@ -46,6 +46,19 @@ def test_bad_input_exits_3_with_one_line_naming_the_file(tmp_path):
     assert len(lines) == 1 and str(missing) in lines[0] and "Traceback" not in res.stderr
 
 
+def test_demo_takes_a_tone_mapper_from_the_table():
+    """``demo --tonemap`` is view.tonemap (choices from the registry); a wrong name is a usage
+    error before any work (the full run is the test below)."""
+    from app.cli import build_parser
+    from app.commands.options import param_values
+    from app.render.tonemap import DEFAULT
+    assert param_values(build_parser().parse_args(["demo", "--tonemap", "agx"]),
+                        "demo")["view.tonemap"] == "agx"
+    assert param_values(build_parser().parse_args(["demo"]), "demo")["view.tonemap"] == DEFAULT
+    res = scanlight("demo", "--tonemap", "reinhard")
+    assert res.returncode == 2 and "reinhard" in res.stderr
+
+
 def test_view_without_display_falls_back_to_demo(tmp_path, monkeypatch):
     """No DISPLAY: `scanlight view` says so and runs the headless demo instead of crashing."""
     import os
@@ -69,3 +82,27 @@ def test_view_without_display_falls_back_to_demo(tmp_path, monkeypatch):
     from app.io.exr import read_exr_layers
     relit = read_exr_layers(tmp_path / "out" / "relit_closeup_expanded.exr")[""]
     assert relit.shape[-1] == 4 and set(np.unique(relit[..., 3])) == {0.0, 1.0}  # A = coverage
+    # the contact sheet: the report says where each tile is; the asset in every render mode;
+    # a tile is its PNG (64 px here) scaled to the sheet's tile size, tone-mapped with the
+    # default tone mapper, which the report names
+    from PIL import Image
+
+    from app.demo.contact_sheet import TILE
+    from app.params import RENDER_MODES
+    from app.render.tonemap import DEFAULT, TONEMAPPERS
+    assert rep["tonemap"] == DEFAULT and rep["tonemapper"] == TONEMAPPERS[DEFAULT].title
+    sheet = np.asarray(Image.open(tmp_path / "out" / "contact_sheet.png").convert("RGB"))
+    info = rep["contact_sheet"]
+    assert info["file"] == str(tmp_path / "out" / "contact_sheet.png")
+    assert tuple(info["size"]) == (sheet.shape[1], sheet.shape[0])
+    tiles = info["tiles"]
+    for kind in ("diffuse (white diffuse)", "glossy (gold)"):
+        for mode in RENDER_MODES:
+            x0, y0, x1, y1 = tiles[f"{kind}, {mode}"]
+            assert (x1 - x0, y1 - y0) == (TILE, TILE) and sheet[y0:y1, x0:x1].std() > 5
+    for name, label in (("relit_closeup_expanded", "hybrid, lit by expanded HDR"),
+                        ("relit_closeup_ldr", "hybrid, lit by LDR scan")):
+        png = Image.open(tmp_path / "out" / f"{name}.png").convert("RGB")
+        want = np.asarray(png.resize((TILE, TILE), Image.Resampling.LANCZOS))
+        x0, y0, x1, y1 = tiles[label]
+        assert np.array_equal(sheet[y0:y1, x0:x1], want), label

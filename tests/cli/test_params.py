@@ -26,6 +26,7 @@ MINIMAL = {
     "turntable": ["turntable", "--cloud", "c.ply", "--object", "o.json", "--count", "4",
                   "--out", "frames"],
     "evaluate": ["evaluate", "expansion", "--cloud", "c.ply", "--gt", "g.ply"],
+    "demo": ["demo"],
     "bench table3": ["bench", "table3"],
     "bench classic": ["bench", "classic"],
     "bench expand": ["bench", "expand"],

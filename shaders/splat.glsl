@@ -40,7 +40,10 @@ flat out vec3 v_color;
 void main() {
     vec3 c = (u_view * vec4(in_position, 1.0)).xyz;
     vec3 n = mat3(u_view) * in_normal;
-    float r = u_radius * in_radius;
+    // never below a pixel's size at its depth: a smaller disc falls between the pixel centres'
+    // rays and vanishes (a lone point, a sparse cloud seen from afar, a small cube-map face)
+    float pixel = 2.0 * max(-c.z, u_near) / (u_proj[1][1] * u_viewport.y);
+    float r = max(u_radius * in_radius, pixel);
     v_center = c;
     v_normal = dot(n, n) > 0.0 ? normalize(n) : vec3(0.0, 0.0, 1.0);
     v_r = r;

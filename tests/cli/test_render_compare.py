@@ -11,7 +11,7 @@ import pytest
 from app.cli import main
 from app.commands import compare as C
 from app.errors import UsageError
-from app.io.exr import read_exr, write_exr
+from app.io.exr import read_exr, read_exr_layers, write_exr
 from app.io.pointcloud import save_cloud
 from tests.support import scenes as S
 
@@ -107,8 +107,9 @@ def test_compare_writes_side_by_side_difference_and_metrics(room, tmp_path):
     s = json.loads(stats.read_text())
     assert s["compare"]["a"] == "mode:classic" and s["compare"]["b"] == "mode:envmap"
     a, b = both[:, :16], both[:, 16:]
-    cov = read_exr(tmp_path / "classic.exr").rgb.sum(axis=-1) > 0
-    assert s["compare"]["metrics"]["pixels"] == int(cov.sum())
+    alpha = read_exr_layers(out)[""][..., 3]            # both halves' coverage
+    both_cover = (alpha[:, :16] > 0.5) & (alpha[:, 16:] > 0.5)
+    assert s["compare"]["metrics"]["pixels"] == int(both_cover.sum()) > 0
     assert 0 < s["compare"]["metrics"]["rel_rmse"] < 1
     with Image.open(png) as im:
         assert im.size == (48, 16 + C.LEGEND_HEIGHT)

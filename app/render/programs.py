@@ -46,6 +46,7 @@ GENERATED_INCLUDES = {
     "gen/viewer_composite.glsl": "app.render.gpu_layout:composite_glsl",
     "gen/joint_bilateral.glsl": "app.pbgi.upsample:weights_glsl",
     "gen/gi_upsample.glsl": "app.pbgi.upsample:upsample_glsl",
+    "gen/tonemap.glsl": "app.render.tonemap:glsl_header",
 }
 
 

@@ -232,6 +232,12 @@ def false_colour_legend() -> list[tuple[str, tuple[float, float, float]]]:
     return [(n + " EV", c) for n, c in zip(names, FALSE_COLOUR_RGB)]
 
 
+def glsl_header() -> str:
+    """``gen/tonemap.glsl`` (app/render/programs.py), included by shaders/lib/tonemap.glsl: the
+    defines of ``glsl_defines``, so every shader that includes the tone mappers gets them."""
+    return "".join(f"#define {k} {v}\n" for k, v in glsl_defines().items())
+
+
 def glsl_defines() -> dict[str, str]:
     """Defines for shaders/lib/tonemap.glsl: each tone mapper's index (TONEMAP_PBR_NEUTRAL ...)
     and the false-colour bands, so the shader keeps no list of its own."""

@@ -3,16 +3,14 @@
 // them for every tone mapper).
 //
 // The tone mappers' indices (TONEMAP_PBR_NEUTRAL, TONEMAP_ACES, ...) and the false-colour bands
-// are injected as defines from the Python registry (app.render.tonemap.glsl_defines), so the
+// are generated from the Python registry (gen/tonemap.glsl: app.render.tonemap.glsl_header), so the
 // order is declared once, there. See that module for which ACES fit and which AgX.
 // Robustness: NaN becomes 0, negatives 0 and values are capped at 1e30 before mapping, so any
 // input (HDR panoramas carry negative pixels and 65504s) maps to finite [0, 1].
 #ifndef SCANLIGHT_TONEMAP_GLSL
 #define SCANLIGHT_TONEMAP_GLSL
 
-#ifndef TONEMAP_PBR_NEUTRAL
-#error "lib/tonemap.glsl needs the defines of app.render.tonemap.glsl_defines()"
-#endif
+#include "gen/tonemap.glsl"
 
 const float TONEMAP_MAX_INPUT = 1e30;
 

@@ -16,7 +16,7 @@ from tests.support import TEST_SHADERS
 @pytest.fixture(scope="module")
 def gl_tonemap(ctx):
     from app.render.programs import load_compute
-    prog = load_compute(ctx, TEST_SHADERS / "tonemap_eval.glsl", T.glsl_defines())
+    prog = load_compute(ctx, TEST_SHADERS / "tonemap_eval.glsl")   # gen/tonemap.glsl: defines
 
     def run(rgb, stops=0.0, tonemapper=T.DEFAULT):
         """``tonemapper`` None: the false-colour view."""

@@ -75,13 +75,18 @@ vec4 front_mean(vec4 t[4], float wt[4]) {
 }
 
 #if RESOLVE_PASS == 2
-// Is p (eye depth z; 0: empty) open, surrounded by the front surface? Each of 8 directions must
-// meet, within u_hole pixels, a filled pixel (p empty) or, p filled, one nearer than z by more
-// than SEE_THROUGH_REL (p is a farther surface seen through a gap of the front one; on a plane,
-// however slanted, half the directions are farther, so a plane's own pixels are never taken).
+// Is p (eye depth z; 0: empty) open, surrounded by the front surface? Along at least 3 of the 4
+// axes (horizontal, vertical, both diagonals) both directions must meet, within u_hole pixels,
+// a filled pixel (p empty) or, p filled, one nearer than z by more than SEE_THROUGH_REL (p is a
+// farther surface seen through a gap of the front one; on a plane, however slanted, half the
+// directions are farther, so a plane's own pixels are never taken). One open axis is a crack of
+// any length (a line of missing splats) and is filled; just outside the room's outline at least
+// two axes are open, so the outline keeps its place.
 bool enclosed(ivec2 p, float z) {
     const ivec2 dirs[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1),
                                    ivec2(1, 1), ivec2(-1, -1), ivec2(1, -1), ivec2(-1, 1));
+    int closed_axes = 0;
+    bool both = true;
     for (int d = 0; d < 8; ++d) {
         bool hit = false;
         for (int k = 1; k <= MAX_HOLE_PX; ++k) {
@@ -91,9 +96,13 @@ bool enclosed(ivec2 p, float z) {
             float zq = imageLoad(u_fine, q).w;
             if (zq > 0.0 && (z <= 0.0 || zq * (1.0 + SEE_THROUGH_REL) < z)) { hit = true; break; }
         }
-        if (!hit) return false;
+        both = both && hit;
+        if ((d & 1) == 1) {                 // the axis' second direction: count, start the next
+            closed_axes += both ? 1 : 0;
+            both = true;
+        }
     }
-    return true;
+    return closed_axes >= 3;
 }
 #endif
 

@@ -8,9 +8,10 @@ per-pixel gather in a full-screen fragment pass gives wrong diagonal pixels on l
 2. pulls: each coarser level averages the filled texels of the level below that lie on the front
    surface (within ``PULL_DEPTH_REL`` of the nearest);
 3. pushes back down: an empty texel takes the bilinear mean of the coarser level; at full
-   resolution only if it is enclosed (a filled pixel within ``MAX_HOLE_PX`` in each of 8
-   directions), so holes up to MAX_HOLE_PX pixels across close while the room's outline against
-   empty space (a window, the edge of a partial scan) keeps its place; a filled pixel enclosed
+   resolution only if it is enclosed (a filled pixel within ``MAX_HOLE_PX`` in both directions
+   along at least 3 of the 4 axes), so holes up to MAX_HOLE_PX pixels across and cracks of any
+   length close while the room's outline against empty space (a window, the edge of a partial
+   scan) keeps its place; a filled pixel enclosed
    the same way by pixels nearer by ``SEE_THROUGH_REL`` (a farther surface seen through a gap of
    a slanted one) is replaced too;
 4. writes ROOM_TEXEL(radiance x eye-dome shade, coverage 1 | 0), less a guard band: the splats

@@ -272,21 +272,25 @@ def _front_mean(t: np.ndarray, w: np.ndarray, pick: bool = False) -> np.ndarray:
 
 
 def _enclosed(z: np.ndarray, reach: int) -> np.ndarray:
-    """splat_resolve.glsl's enclosed(): in each of 8 directions, within ``reach`` pixels, a
-    filled pixel (z = 0 here) or one nearer than z by more than SEE_THROUGH_REL."""
+    """splat_resolve.glsl's enclosed(): along at least 3 of the 4 axes, in both directions,
+    within ``reach`` pixels, a filled pixel (z = 0 here) or one nearer than z by more than
+    SEE_THROUGH_REL."""
     h, w = z.shape
     ys, xs = np.mgrid[0:h, 0:w]
-    out = np.ones(z.shape, bool)
-    for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (-1, 1), (1, -1)):
-        hit = np.zeros(z.shape, bool)
-        for k in range(1, reach + 1):
-            yy, xx = ys + k * dy, xs + k * dx
-            inside = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
-            zq = np.zeros(z.shape)
-            zq[inside] = z[yy[inside], xx[inside]]
-            hit |= (zq > 0) & ((z <= 0) | (zq * np.float32(1 + SEE_THROUGH_REL) < z))
-        out &= hit
-    return out
+    closed = np.zeros(z.shape, int)
+    for axis in (((0, 1), (0, -1)), ((1, 0), (-1, 0)), ((1, 1), (-1, -1)), ((-1, 1), (1, -1))):
+        both = np.ones(z.shape, bool)
+        for dy, dx in axis:
+            hit = np.zeros(z.shape, bool)
+            for k in range(1, reach + 1):
+                yy, xx = ys + k * dy, xs + k * dx
+                inside = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
+                zq = np.zeros(z.shape)
+                zq[inside] = z[yy[inside], xx[inside]]
+                hit |= (zq > 0) & ((z <= 0) | (zq * np.float32(1 + SEE_THROUGH_REL) < z))
+            both &= hit
+        closed += both
+    return closed >= 3
 
 
 def push_pull_twin(level0: np.ndarray, reach: int, pick: bool = False) -> np.ndarray:
@@ -352,3 +356,21 @@ def test_push_pull_matches_numpy_twin(ctx, reach, pick):
         assert got[3, 15, 3] < 2.5              # the see-through pixel shows the front
     else:
         assert (got[..., 3] > 0).all()          # unbounded: everything filled
+
+
+def test_a_crack_longer_than_the_reach_is_filled(ctx):
+    """A 1-pixel line of missing splats, 20 pixels long (more than MAX_HOLE_PX): open along its
+    own axis only, so it is filled (the demo's closeups had two black pixels at the end of such
+    a crack); the empty side beside the room stays empty."""
+    from app.render.splat_fill import MAX_HOLE_PX, SplatFill
+    img = np.zeros((32, 40, 4), np.float32)
+    img[:, :30] = (0.4, 0.5, 0.6, 2.0)
+    img[15, 2:22] = 0.0                                 # the crack, 20 px > MAX_HOLE_PX
+    assert 20 > MAX_HOLE_PX
+    fill = SplatFill(ctx)
+    got = fill.push_pull(img, MAX_HOLE_PX)
+    fill.release()
+    assert (got[15, 2:22, 3] > 0).all()
+    np.testing.assert_allclose(got[15, 2:22, :3], np.broadcast_to((0.4, 0.5, 0.6), (20, 3)),
+                               atol=1e-5)
+    assert (got[:, 31:, 3] == 0).all()

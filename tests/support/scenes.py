@@ -151,3 +151,24 @@ def view_cos(r, cam, mat):
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     pix = np.ascontiguousarray(rec[:, 3]).view(np.uint32)
     return pix, np.einsum("ij,ij->i", v, rec[:, 4:7])
+
+
+def sample_cube_map(ctx, texture, directions: np.ndarray) -> np.ndarray:
+    """(N, 3) RGB of a cube texture looked up (textureLod, level 0) in (N, 3) directions by a
+    compute shader: what the gather sees, independent of how the faces were made."""
+    cs = ctx.compute_shader("""#version 430
+        layout(local_size_x = 1) in;
+        uniform samplerCube u_env;
+        layout(std430, binding = 0) buffer D { vec4 d[]; };
+        void main() { uint i = gl_GlobalInvocationID.x; d[i] = textureLod(u_env, d[i].xyz, 0.0); }""")
+    d = np.asarray(directions, np.float64)
+    buf = ctx.buffer(np.c_[d, np.zeros(len(d))].astype("f4").tobytes())
+    try:
+        buf.bind_to_storage_buffer(0)
+        texture.use(0)
+        cs["u_env"] = 0
+        cs.run(len(d))
+        return np.frombuffer(buf.read(), "f4").reshape(-1, 4)[:, :3].copy()
+    finally:
+        buf.release()
+        cs.release()

@@ -10,4 +10,5 @@ BENCHES = {
     "asset": "app.bench.asset_light",
     "tradeoff": "app.bench.tradeoff",
     "nearfield": "app.bench.nearfield",
+    "profile": "app.bench.profile",
 }

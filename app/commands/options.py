@@ -48,6 +48,7 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
     "bench classic": _flags(("pbgi.memory_budget_mb",)),
     "bench glossy": _flags(("pbgi.microbuffer",)),
     "bench asset": _flags(("pbgi.microbuffer", "pbgi.asset_surfels")),
+    "bench profile": _flags(("pbgi.microbuffer",)),
     "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed",
                             "hdr.registration"),
                            {"hdr.poisson_solver": "--solver"}),

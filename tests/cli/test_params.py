@@ -32,6 +32,7 @@ MINIMAL = {
     "bench expand": ["bench", "expand"],
     "bench glossy": ["bench", "glossy"],
     "bench asset": ["bench", "asset"],
+    "bench profile": ["bench", "profile"],
 }
 
 

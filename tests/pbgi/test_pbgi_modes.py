@@ -329,3 +329,36 @@ def test_render_cli_modes_give_classic_s_image(tmp_path):
                  str(tmp_path / "obj.json"), "--camera", str(tmp_path / "cam.json"),
                  "--mode", "hybrid", "--omega-tr-factor", "0", "--out",
                  str(tmp_path / "x.exr")]) == 2
+
+
+def test_profile_splits_each_frame_into_its_parts(capsys):
+    """bench profile: one record per mode and material; the parts are each render's own timers
+    (non-negative, within the frame's ms); only the glossy material fills lobe buffers, and not
+    in the environment map, which walks nothing; the markdown names every row."""
+    import argparse
+
+    from app.bench import profile
+    ap = argparse.ArgumentParser()
+    profile.add_arguments(ap)
+    args = ap.parse_args(["--viewport", "16", "--microbuffer", "8", "--repeat", "1",
+                          "--points", "20000"])
+    records = profile.run(args)
+    assert {(r["case"]["mode"], r["case"]["material"]) for r in records} == \
+        {(m, k) for m in profile.MODES for k in profile.MATERIALS}
+    for rec in records:
+        m = rec["metrics"]
+        parts = m["gbuffer_ms"] + m["cut_ms"] + m["lobe_ms"] + m["gather_ms"]
+        assert min(m["gbuffer_ms"], m["cut_ms"], m["lobe_ms"], m["gather_ms"]) >= 0
+        assert parts <= m["ms"] * 1.001 and m["receivers"] > 0 and m["gather_ms"] > 0
+        assert (m["lobe_ms"] > 0) == (rec["case"]["material"] == "glossy"
+                                      and rec["case"]["mode"] != "envmap"), rec
+        if rec["case"]["mode"] == "envmap":
+            assert m["visits_per_receiver"] == 0 and m["floor_ms"] == 0
+        if rec["case"]["mode"] == "classic":
+            assert m["visits_per_receiver"] > 1
+            assert m["floor_ms"] == pytest.approx(m["visits_per_receiver"] * m["receivers"]
+                                                  / profile.FLOOR_VISITS_PER_S * 1e3)
+        if rec["case"]["mode"] == "hybrid":
+            assert "far_ms" in m and "near_ms" in m
+    out = capsys.readouterr().out
+    assert out.count("| classic |") == 2 and "cut / floor" in out

@@ -1,0 +1,128 @@
+"""``scanlight bench profile``: where a frame's time goes, per mode and material, so that a change
+is judged by its effect on the part it targets (issue 19: "build what the profile says").
+
+Parts, from each render's own timers (app/pbgi/stats.py, every one measured between
+``ctx.finish()`` calls, so a part is the GPU work it names):
+
+* ``gbuffer``: rasterising the asset and compacting its receivers;
+* ``cut``: the hierarchy walk and the rasterisation of the accepted nodes into the micro-buffers
+  (one shader pass each batch: the walk and the raster are not separable from outside it); for
+  Hybrid its far-field block walks and the per-receiver near field (``far`` / ``near``);
+* ``lobe``: the glossy receivers' importance-warped micro-buffers and their ray casts
+  (app/pbgi/lobe.py), zero for a rough material;
+* ``gather``: the final gather with the BRDF;
+* ``other``: the rest of ``ms`` (buffer set-up, read-back).
+
+Node visits per receiver are the walk's own count (``nodes_visited``, a mean). ``floor_ms`` is
+what those visits cost at the plain per-pixel walk's rate the guide measured on this machine
+(FLOOR_VISITS_PER_S), i.e. how far the cut is from a walk that does nothing but visit nodes.
+Every mode runs on the same demo scene in one run, interleaved, the fastest of ``--repeat``
+renders per cell (the machine is shared and noisy: ratios within one run only).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from app.bench.records import record
+from app.commands.options import add_param_options, param_values
+
+log = logging.getLogger(__name__)
+
+MODES = ("classic", "mipmapped", "hybrid", "envmap")
+FLOOR_VISITS_PER_S = 100e6    # a plain GLSL per-pixel walk of a 200k-point hierarchy here
+MATERIALS = {
+    "diffuse": dict(base_color=(0.8, 0.8, 0.8), roughness=0.5),
+    "glossy": dict(base_color=(1.0, 0.78, 0.34), roughness=0.25, metallic=1.0),
+}
+
+
+def _names(allowed):
+    def parse(text: str) -> list[str]:
+        out = [t.strip() for t in str(text).split(",") if t.strip()]
+        bad = [t for t in out if t not in allowed]
+        if bad or not out:
+            import argparse
+            raise argparse.ArgumentTypeError(f"unknown {', '.join(bad) or 'empty list'} "
+                                             f"(known: {', '.join(allowed)})")
+        return out
+    return parse
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--viewport", type=int, default=128, help="square viewport (default 128)")
+    parser.add_argument("--view", choices=("closeup", "whole"), default="closeup")
+    parser.add_argument("--modes", type=_names(MODES), default=list(MODES),
+                        help="comma-separated modes (default all)")
+    parser.add_argument("--materials", type=_names(tuple(MATERIALS)), default=list(MATERIALS),
+                        help="comma-separated: diffuse, glossy (default both)")
+    parser.add_argument("--repeat", type=int, default=3,
+                        help="renders per cell; the fastest counts (default 3)")
+    parser.add_argument("--points", type=int, default=200_000, help="points of the demo room")
+    add_param_options(parser, "bench profile")     # --microbuffer: the table's
+
+
+def parts(s) -> dict:
+    """ms per part of one render's RenderStats (module docstring), and the walk's figures."""
+    out = {"ms": s.ms, "gbuffer_ms": s.ms_gbuffer, "cut_ms": s.ms_cut, "lobe_ms": s.ms_lobe,
+           "gather_ms": s.ms_gather}
+    if s.share is not None:
+        out["far_ms"], out["near_ms"] = s.share.ms_share_far, s.share.ms_share_near
+    out["other_ms"] = max(s.ms - s.ms_gbuffer - s.ms_cut - s.ms_lobe - s.ms_gather, 0.0)
+    out["receivers"] = s.receivers
+    out["visits_per_receiver"] = float(s.nodes_visited)
+    visits = float(s.nodes_visited) * s.receivers
+    out["floor_ms"] = visits / FLOOR_VISITS_PER_S * 1e3
+    out["cut_over_floor"] = s.ms_cut / out["floor_ms"] if out["floor_ms"] > 0 else float("nan")
+    return out
+
+
+def run(args) -> list[dict]:
+    from app.bench.table3 import setup
+    from app.demo.room import default_views
+    from app.material import Material
+    from app.pbgi.renderer import RenderParams
+    args.microbuffer = int(param_values(args, "bench profile")["pbgi.microbuffer"])
+    r = setup(args.points)
+    cam = default_views(args.viewport, args.viewport)[args.view]
+    warm = default_views(16, 16)[args.view]
+    mats = {name: Material(**kw) for name, kw in MATERIALS.items() if name in args.materials}
+    params = {mode: RenderParams(mode=mode, microbuffer=args.microbuffer) for mode in args.modes}
+    for mode in args.modes:                       # compile and JIT every variant first
+        for mat in mats.values():
+            r.render(warm, [mat], params[mode])
+    best: dict = {}
+    for _ in range(max(1, args.repeat)):
+        for name, mat in mats.items():
+            for mode in args.modes:               # interleaved: the same conditions for all
+                r.forget_microbuffers()
+                st = r.render(cam, [mat], params[mode]).stats
+                key = (mode, name)
+                if key not in best or st.ms < best[key].ms:
+                    best[key] = st
+    records = [record("profile", {"mode": mode, "material": name, "viewport": args.viewport,
+                                  "microbuffer": args.microbuffer, "view": args.view},
+                      parts(best[(mode, name)]))
+               for name in mats for mode in args.modes]
+    print(markdown(records))
+    return records
+
+
+def markdown(records: list[dict]) -> str:
+    head = ("| mode | material | ms | G-buffer | cut (walk + raster) | lobe | gather | other | "
+            "visits / receiver | floor ms | cut / floor |")
+    lines = [head, "|" + "---|" * 11]
+    for rec in records:
+        c, m = rec["case"], rec["metrics"]
+        pct = (lambda k: f"{m[k]:.0f} ({100 * m[k] / m['ms']:.0f}%)" if m["ms"] > 0 else "-")
+        cut = pct("cut_ms")
+        if "far_ms" in m:
+            cut += f" [far {m['far_ms']:.0f}, near {m['near_ms']:.0f}]"
+        lines.append(f"| {c['mode']} | {c['material']} | {m['ms']:.0f} | {pct('gbuffer_ms')} | "
+                     f"{cut} | {pct('lobe_ms')} | {pct('gather_ms')} | {pct('other_ms')} | "
+                     f"{m['visits_per_receiver']:.0f} | {m['floor_ms']:.1f} | "
+                     f"{m['cut_over_floor']:.1f} |")
+    return "\n".join(lines)
+
+
+__all__ = ["add_arguments", "run", "parts", "markdown", "FLOOR_VISITS_PER_S"]

@@ -216,6 +216,25 @@ PARAMS: tuple[Param, ...] = (
     _f("view.fly_speed", 1.0, "Fly-mode walking speed.", 0.05, 20.0, "m/s", log=True),
     _b("view.free_orbit", False, "Let the orbit, pan and zoom take the eye under the scan's "
        "floor (off: the eye stays 5 cm above it; app/ui/navigation.py)."),
+    # -- the viewer's light and its A/B compare (app/ui/engine.py, app/ui/compare.py) -----------
+    _c("light.source", "scan", "What lights the asset in the viewer: the scan (PBGI), or the "
+       "session's HDRI file (an equirectangular EXR through the environment map, shown as the "
+       "background: render --hdri).", ("scan", "hdri"), label="light", redo="gi"),
+    _f("light.hdri_rotation", 0.0, "Turn the HDRI about +y, counter-clockwise seen from above "
+       "(render --hdri-rotation).", -180.0, 180.0, "deg", label="HDRI rotation", redo="gi",
+       when=("light.source", ("hdri",))),
+    _b("compare.enabled", False, "A/B split screen: A (the current settings) left of the "
+       "divider, B right; B differs from A by 'compare.b'.", label="A/B compare", redo="gi"),
+    _c("compare.b", "mode", "What B changes: another render mode, another quality preset, the "
+       "HDR (expanded) cloud lighting B where A has the LDR scan, or the session's HDRI lighting "
+       "B where A has the scan.", ("mode", "quality", "cloud", "hdri"), label="B differs by",
+       redo="gi"),
+    _c("compare.mode", "classic", "B's render mode (compare.b = mode).", RENDER_MODES,
+       label="B mode", redo="gi", when=("compare.b", ("mode",))),
+    _c("compare.quality", "final", "B's quality preset (compare.b = quality).",
+       tuple(QUALITY_PRESETS), label="B quality", redo="gi", when=("compare.b", ("quality",))),
+    _f("compare.split", 0.5, "Where the divider stands, as a fraction of the viewport's width "
+       "(drag it in the viewport).", 0.0, 1.0, label="divider", redo="display"),
     # -- PBGI: RenderParams, plus the viewer-only render_scale, preview_scale, frame_budget_ms -----
     _c("pbgi.quality", DEFAULT_QUALITY, "Quality preset: sets the mode, micro-buffer size, GI "
        "render scale, parallax tolerance and node stop factor together, from the measured "

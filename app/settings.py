@@ -38,7 +38,7 @@ QUALITY = "pbgi.quality"
 SESSION_VERSION = 1
 
 # Change keys of the session parts that are not table settings.
-DOCUMENT_KEYS = ("files.cloud", "files.hdr_cloud", "files.asset", "files.photo",
+DOCUMENT_KEYS = ("files.cloud", "files.hdr_cloud", "files.asset", "files.photo", "files.hdri",
                  "asset.transform", "materials", "capture_cameras", "camera")
 
 
@@ -216,7 +216,8 @@ class Session:
     """Files, capture cameras, asset transform, materials, view camera and settings.
 
     ``cloud``/``photo`` are paths or "demo" (the built-in scene); ``asset`` is a path or one of
-    the built-in objects ("sphere", "knot"); ``hdr_cloud`` is the expansion result, if any.
+    the built-in objects ("sphere", "knot"); ``hdr_cloud`` is the expansion result, if any;
+    ``hdri`` an equirectangular EXR that lights the asset when ``light.source`` is "hdri".
     ``materials`` None means "the asset's own". Paths are stored relative to the session file.
     """
 
@@ -224,6 +225,7 @@ class Session:
     photo: str | None = "demo"
     hdr_cloud: str | None = None
     asset: str = "sphere"
+    hdri: str | None = None
     transform: AssetTransform = field(default_factory=AssetTransform)
     capture_cameras: list[CaptureCamera] = field(default_factory=list)
     materials: list[Material] | None = None
@@ -265,7 +267,8 @@ class Session:
         return {
             "scanlight_session": SESSION_VERSION,
             "files": {"cloud": _rel(self.cloud, base), "photo": _rel(self.photo, base),
-                      "hdr_cloud": _rel(self.hdr_cloud, base), "asset": _rel(self.asset, base)},
+                      "hdr_cloud": _rel(self.hdr_cloud, base), "asset": _rel(self.asset, base),
+                      "hdri": _rel(self.hdri, base)},
             "capture_cameras": [c.to_dict() for c in self.capture_cameras],
             "asset_transform": self.transform.to_dict(),
             "materials": None if self.materials is None else [
@@ -320,9 +323,10 @@ def session_from_dict(d: dict, base: Path, source=None) -> Session:
                                      f"supported (this build reads version {SESSION_VERSION})")
     top = Fields(d, "session", source)
     files = Fields(top.optional("files", dict, {}), "session 'files'", source,
-                   ("cloud", "photo", "hdr_cloud", "asset"))
+                   ("cloud", "photo", "hdr_cloud", "asset", "hdri"))
     s = Session(cloud=_abs(files, "cloud", base, "demo"), photo=_abs(files, "photo", base),
-                hdr_cloud=_abs(files, "hdr_cloud", base), asset=_abs(files, "asset", base, "sphere"))
+                hdr_cloud=_abs(files, "hdr_cloud", base),
+                asset=_abs(files, "asset", base, "sphere"), hdri=_abs(files, "hdri", base))
     for i, c in enumerate(top.optional("capture_cameras", list, [])):
         cam = Fields(c, f"session capture camera {i}", source, ("name", "position"))
         s.capture_cameras.append(CaptureCamera(cam.string("name", f"capture {i + 1}"),

@@ -57,6 +57,9 @@ uniform int u_raw_room;        // 1: room colours bypass exposure and tone mappi
 uniform int u_unavailable;
 uniform ivec4 u_label_rect;    // x, y (bottom-left), w, h in pixels; w = 0: no label
 uniform vec3 u_background;     // linear radiance where nothing was splatted
+uniform int u_divider;         // the A/B compare's divider column (app/ui/compare.py); -1: none.
+                               // Each side is its own dispatch clipped to its columns; this
+                               // only draws the 2-pixel line on the display image
 
 float linear_depth(float d) {
     float ndc = 2.0 * d - 1.0;
@@ -107,7 +110,9 @@ void main() {
     }
 #endif
     composite_store(p, CompositeTexel(out_rgb, asset ? 1.0 : 0.0));
-    imageStore(u_display, p, vec4(display(out_rgb, u_raw_room != 0 && !asset), 1.0));
+    vec3 shown = display(out_rgb, u_raw_room != 0 && !asset);
+    if (p.x == u_divider || p.x == u_divider - 1) shown = vec3(0.92);
+    imageStore(u_display, p, vec4(shown, 1.0));
 #endif
 }
 #endif

@@ -19,8 +19,15 @@ connected in ``_connect_handlers`` (``app.settings.ChangeHandlers``), in this or
     view.fov_y                     the navigator's field of view
     camera                         the navigator follows the session's camera
     materials                      re-gather only (uniforms)
+    files.hdri, light.source, light.hdri_rotation, compare.enabled, compare.b
+                                   which HDRI lights A and B (Relighter.set_hdri; the panorama
+                                   replaces the room behind that side); re-gather
     table parameters by their ``Param.redo`` (app/params.py): "room" redraws the splats, "gi"
     re-gathers, "display" re-composites; "job" and "none" redo nothing here.
+
+The A/B compare (app/ui/compare.py): a second GI layer ``gi_b`` gathered by a second renderer
+with B's settings, refined in turns with A under the same frame budget, composited right of the
+divider (``compare.split``); ``compare_metrics`` once both are refined.
 
 A camera move (any navigation, or the field of view) redraws the room and G-buffer and
 re-gathers; ``frame()`` finds it by comparing cameras, not through the change set.
@@ -48,6 +55,7 @@ from app.errors import ScanlightError
 from app.pbgi.renderer import RenderParams
 from app.pbgi.stats import RenderStats
 from app.settings import ChangeHandlers, Session
+from app.ui.compare import b_settings, label_rects, layer_metrics, side_names, split_column
 from app.ui.navigation import ViewNavigator, scan_floor
 from app.ui.refine import ProgressiveGI, scaled_camera, screen_rect
 from app.ui.scene import Asset, Cloud, copy_materials, load_cloud_files
@@ -108,6 +116,19 @@ class ViewerEngine:
         self.relighter_error: str | None = None
         self._lit_cloud = None
         self.gi = ProgressiveGI(self._render_gi)
+        # the A/B compare (app/ui/compare.py): B's GI layer and its own renderer, so neither
+        # side's caches are thrown away by the other's renders
+        self.gi_b = ProgressiveGI(self._render_gi_b)
+        self.relighter_b = None
+        self._b_active = False          # B is being refined and shown
+        self._b_turn = False            # B's frame (A and B refine in turns)
+        self._b_given: dict = {}        # what relighter_b was last handed (cloud, mesh, hdri)
+        self.compare_labels = None
+        self.compare_metrics: dict | None = None    # B against A, once both are refined
+        # HDRI lighting (light.source, session.hdri): the file loaded once, rotated per setting
+        self._hdri = None               # (path, Hdri)
+        self._hdri_failed = None        # the path that failed to load (reported once)
+        self.hdri_a = self.hdri_b = None    # the HDRI lighting each side, None: the scan
         self.gi_stats: RenderStats | None = None    # the last gather that had receivers
         self.gi_failed = False
         self.frame_ms: list[float] = []
@@ -131,6 +152,7 @@ class ViewerEngine:
         self._start_relighter(relighter)
         self.load_cloud()
         self.load_asset()
+        self._sync_light()
 
     # -- messages --------------------------------------------------------------------------------
     def error(self, text: str, level: str = "error") -> None:
@@ -171,6 +193,9 @@ class ViewerEngine:
 
     def _start_relighter(self, relighter) -> None:
         """Take the injected relighter (or make it); a failure leaves the viewer without one."""
+        # B's renderer is made the same way (a relighter handed in: another of its class)
+        self._relighter_factory = (relighter if isinstance(relighter, type)
+                                   or not hasattr(relighter, "render") else type(relighter))
         try:
             self.relighter = make_relighter(relighter, self.ctx)
         except Exception as exc:  # a missing module, no compute shaders, ...: the viewer runs on
@@ -289,6 +314,8 @@ class ViewerEngine:
         c.connect("view.fov_y", self._on_fov)
         c.connect("camera", self._on_camera)
         c.connect("materials", self._redo_gi)
+        c.connect(("files.hdri", "light.source", "light.hdri_rotation", "compare.enabled",
+                   "compare.b"), self._on_light)
         c.connect(RECOMPOSITE_KEYS, self._redo_composite)
         # table parameters: what a change invalidates is their Param.redo (app/params.py)
         c.connect_redo("room", self._redo_room)
@@ -319,6 +346,119 @@ class ViewerEngine:
             self.load_asset()       # places it too
         else:
             self.place_asset()
+
+    def _on_light(self, keys) -> None:
+        if "files.hdri" in keys:
+            self._hdri = self._hdri_failed = None
+        self._sync_light()
+        self._room_dirty = self._gi_dirty = True
+
+    # -- HDRI lighting and the A/B compare -------------------------------------------------------
+    @property
+    def compare_on(self) -> bool:
+        return bool(self.session.settings["compare.enabled"]) and self.mesh is not None
+
+    @property
+    def b_refining(self) -> bool:
+        """B's layer of the compare is shown and still refining."""
+        return self._b_active and self.gi_b.refining
+
+    def _load_hdri(self):
+        """The session's HDRI at the rotation setting, or None (no file, or a bad one: one
+        message per file, then the scan lights)."""
+        path = self.session.hdri
+        if path is None:
+            self.error("light: no HDRI file chosen (Light panel: open...): lit by the scan",
+                       "warning")
+            return None
+        if self._hdri_failed == path:
+            return None
+        if self._hdri is None or self._hdri[0] != path:
+            from app.pbgi.hdri import load_hdri
+            try:
+                self._hdri = (path, load_hdri(path))
+            except Exception as exc:
+                self._hdri_failed = path
+                self.report_failure("opening the HDRI", exc)
+                return None
+        hdri, rot = self._hdri[1], float(self.session.settings["light.hdri_rotation"])
+        return hdri if hdri.rotation_deg == rot else hdri.rotated(rot)
+
+    def _sync_light(self) -> None:
+        """Which HDRI lights A (``light.source``) and B (the other light when B compares
+        lights); A's renderer gets its HDRI here, B's in ``_sync_b``."""
+        s = self.session.settings
+        a = s["light.source"] == "hdri"
+        b = (not a) if self.compare_on and s["compare.b"] == "hdri" else a
+        hdri = self._load_hdri() if (a or b) else None
+        self.hdri_a, self.hdri_b = (hdri if a else None), (hdri if b else None)
+        key = None if self.hdri_a is None else self.hdri_a.key
+        given = getattr(getattr(self.relighter, "hdri", None), "key", None)
+        if self.relighter is not None and given != key:
+            self.guard("lighting with the HDRI", self.relighter.set_hdri, self.hdri_a)
+            self._show_differential(None)       # the scan's shadow is not shown under an HDRI
+
+    def _b_cloud(self):
+        """The cloud lighting B: A's, or the other one when B compares clouds."""
+        s = self.session.settings
+        lit = self.cloud.lighting(s["view.cloud"])
+        if s["compare.b"] != "cloud":
+            return lit
+        if self.cloud.hdr is None:
+            self.error("compare: no HDR cloud yet (run the HDR expansion): B is lit by the "
+                       "scan too", "warning")
+            return lit
+        return self.cloud.ldr if lit is self.cloud.hdr else self.cloud.hdr
+
+    def _sync_b(self) -> bool:
+        """Hand B's renderer what changed since (made on the first compare); False: none."""
+        if self.relighter is None:
+            return False
+        if self.relighter_b is None:
+            t0 = time.perf_counter()
+            self.relighter_b = self.guard("starting B's renderer", make_relighter,
+                                          self._relighter_factory, self.ctx)
+            self.timings["compare_start_ms"] = (time.perf_counter() - t0) * 1e3
+            self._b_given = {}
+            if self.relighter_b is None:
+                return False
+        r, given = self.relighter_b, self._b_given
+        cloud, key = self._b_cloud(), None if self.hdri_b is None else self.hdri_b.key
+        if given.get("cloud") is not cloud:
+            t0 = time.perf_counter()
+            try:
+                r.set_cloud(cloud)
+            except Exception as exc:
+                self.report_failure("building B's light hierarchy", exc)
+                return False
+            self.timings["set_cloud_b_ms"] = (time.perf_counter() - t0) * 1e3
+            given["cloud"] = cloud
+        if given.get("mesh") is not self.mesh:
+            self.guard("uploading the asset for B", r.set_asset, self.mesh)
+            given["mesh"] = self.mesh
+        if given.get("hdri", ()) != key:
+            self.guard("lighting B with the HDRI", r.set_hdri, self.hdri_b)
+            given["hdri"] = key
+        return True
+
+    def _set_side_labels(self) -> None:
+        s = self.session.settings
+        a_hdr = self.cloud.lighting(s["view.cloud"]) is self.cloud.hdr
+        b_hdr = a_hdr if s["compare.b"] != "cloud" or self.cloud.hdr is None else not a_hdr
+        names = side_names(s, None if self.hdri_a is None else self.session.hdri,
+                           None if self.hdri_b is None else self.session.hdri, a_hdr, b_hdr)
+        if names != self.compare_labels:
+            self.compare_labels = names
+            self.view.set_side_labels([text_image(n, 1) for n in names])
+
+    def _draw_backdrops(self, cam: Camera) -> None:
+        """The HDRI's panorama behind the side it lights, instead of the room's splats."""
+        from app.pbgi.hdri import hdri_backdrop
+        t = time.perf_counter()
+        for side, hdri in ((self.view.side_a, self.hdri_a),
+                           (self.view.side_b, self.hdri_b if self.compare_on else None)):
+            self.view.set_backdrop(side, None if hdri is None else hdri_backdrop(hdri, cam))
+        self.timings["backdrop_ms"] = (time.perf_counter() - t) * 1e3
 
     def _on_fov(self, keys) -> None:
         self.nav.fov_y_deg = self.session.settings["view.fov_y"]
@@ -372,6 +512,7 @@ class ViewerEngine:
                                 self.session.settings["view.eye_dome"])
             self.view.draw_gbuffer(cam)
             self.timings["room_ms"] = (time.perf_counter() - t) * 1e3
+            self._draw_backdrops(cam)
             self._room_dirty = self._gbuffer_dirty = False
             self._composite_dirty = info["room"] = True
         elif self._gbuffer_dirty:
@@ -384,12 +525,18 @@ class ViewerEngine:
             self._restart_gi(cam)
         budget = self.session.settings["pbgi.frame_budget_ms"] if budget_ms is None else budget_ms
         self._interacting = bool(interacting)
-        if self.renderer_available and not self.gi_failed and self.gi.refining:
+        # A and B (the compare) share the frame's budget: while both refine they take turns
+        layers = [g for g in (self.gi, self.gi_b if self._b_active else None)
+                  if g is not None and g.refining]
+        if self.renderer_available and not self.gi_failed and layers:
             self.reset_gl_state()
             t = time.perf_counter()
-            if self.gi.step(budget, allow_tiles=not interacting):
+            self._b_turn = not self._b_turn
+            layer = layers[-1] if self._b_turn else layers[0]
+            if layer.step(budget, allow_tiles=not interacting):
                 info["gi"] = True
             self.timings["gi_frame_ms"] = (time.perf_counter() - t) * 1e3
+            self._compare_metrics()
         elif not interacting:
             self.reset_gl_state()
             info["differential"] = self._advance_differential(budget)
@@ -418,6 +565,23 @@ class ViewerEngine:
         self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
                         s["pbgi.idle_passes"])
         self._asset_dirty = True
+        self.compare_metrics = None
+        self._b_active = self.compare_on and self.renderer_available and self._sync_b()
+        if self._b_active:
+            layer_b = scaled_camera(cam, b_settings(s)["pbgi.render_scale"])
+            self.gi_b.restart(layer_b, screen_rect(layer_b, *self.mesh.bounds()),
+                              s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
+                              s["pbgi.idle_passes"])
+            self._set_side_labels()
+
+    def _compare_metrics(self) -> None:
+        """B against A (render --compare's metrics) once both layers are refined."""
+        if (self._b_active and self.compare_metrics is None and not self.gi.refining
+                and not self.gi_b.refining and not self.gi_failed):
+            t = time.perf_counter()
+            self.compare_metrics = self.guard("the A/B metrics", layer_metrics, self.gi.full,
+                                              self.gi_b.full) or {}
+            self.timings["compare_metrics_ms"] = (time.perf_counter() - t) * 1e3
 
     def _upload_gi(self) -> None:
         if self.gi.full is None:
@@ -432,6 +596,16 @@ class ViewerEngine:
         elif rects:
             self.view.upload_full(self.gi.full, rects)
             self._asset_dirty = True
+        if self._b_active and self.gi_b.full is not None:
+            side = self.view.side_b
+            preview, reset, rects = self.gi_b.take_dirty()
+            if preview or side.preview_tex is None:
+                self.view.upload_preview(self.gi_b.preview, side)
+            if reset or side.full_tex is None:
+                self.view.upload_full(self.gi_b.full, side=side)
+            elif rects:
+                self.view.upload_full(self.gi_b.full, rects, side)
+            self._asset_dirty = self._asset_dirty or preview or reset or bool(rects)
 
     def _label(self, cam: Camera):
         if self.renderer_available or self.mesh is None:
@@ -453,18 +627,28 @@ class ViewerEngine:
         rect = None if self.mesh is None else screen_rect(cam, *self.mesh.bounds())
         # a failed relighting shows the placeholder hatch (the reason is in the messages), so
         # the asset never silently vanishes from the picture
-        self.view.composite(cam, s["view.exposure"], s["view.tonemap"],
-                            raw_room=self.cloud.false_colour(s["view.cloud"]),
-                            unavailable=not self.renderer_available or self.gi_failed,
-                            asset_rect=rect, label_rect=label, room=room,
-                            false_colour=s["view.false_colour"])
+        kw = dict(raw_room=self.cloud.false_colour(s["view.cloud"]),
+                  unavailable=not self.renderer_available or self.gi_failed,
+                  asset_rect=rect, label_rect=label, room=room,
+                  false_colour=s["view.false_colour"])
+        if not self._b_active:
+            self.view.composite(cam, s["view.exposure"], s["view.tonemap"], **kw)
+        else:       # A left of the divider, B right of it, each side its own dispatch
+            w = self.size[0]
+            x = split_column(s["compare.split"], w)
+            self.view.composite(cam, s["view.exposure"], s["view.tonemap"], columns=(0, x),
+                                divider=x, **kw)
+            self.view.composite(cam, s["view.exposure"], s["view.tonemap"], columns=(x, w),
+                                divider=x, side=self.view.side_b, **kw)
+            self.view.draw_side_labels(label_rects(x, w, *self.view.side_label_sizes))
         self._composite_dirty = self._asset_dirty = False
 
     # -- the asset's shadow and bounce on the scan ---------------------------------------------
     def _differential_params(self):
         s = self.session.settings
         if (not self.renderer_available or self.mesh is None or self.cloud is None
-                or not s["pbgi.differential"] or self.cloud.false_colour(s["view.cloud"])):
+                or not s["pbgi.differential"] or self.cloud.false_colour(s["view.cloud"])
+                or self.hdri_a is not None):
             return None
         return RenderParams.from_settings(s)
 
@@ -518,14 +702,22 @@ class ViewerEngine:
         return True
 
     def _render_gi(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
-        s = self.session.settings
+        return self._gather(self.relighter, self.session.settings, camera, tile, pass_index)
+
+    def _render_gi_b(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
+        """B's layer: B's settings (app/ui/compare.py), B's renderer; its stats stay B's."""
+        return self._gather(self.relighter_b, b_settings(self.session.settings), camera, tile,
+                            pass_index, keep_stats=False)
+
+    def _gather(self, relighter, s, camera: Camera, tile, pass_index: int = 0,
+                keep_stats: bool = True) -> np.ndarray:
         params = RenderParams.from_settings(s)
-        if (self._interacting and params.asset_occlusion and self.relighter is not None
-                and not self.relighter.asset_scene_ready(self.session.materials, params)):
+        if (self._interacting and params.asset_occlusion and relighter is not None
+                and not relighter.asset_scene_ready(self.session.materials, params)):
             params = replace(params, asset_occlusion=False)   # built after the drag
         try:
-            res = self.relighter.render(camera, self.session.materials, params, tile=tile,
-                                        pass_index=pass_index)
+            res = relighter.render(camera, self.session.materials, params, tile=tile,
+                                   pass_index=pass_index)
         except Exception as exc:
             self.gi_failed = True
             self.report_failure("relighting", exc)
@@ -537,12 +729,15 @@ class ViewerEngine:
             img = img[y:y + h, x:x + w]
         img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
         stats, prev = res.stats, self.gi_stats
+        if not keep_stats:
+            prev = stats = None
         # a tile outside the silhouette gathers nothing: keep showing the last real gather's
         # figures (same mode and micro-buffer) rather than zeros
-        if not (stats.receivers == 0 and prev is not None and prev.receivers > 0
+        if stats is not None and not (
+                stats.receivers == 0 and prev is not None and prev.receivers > 0
                 and (prev.mode, prev.microbuffer) == (stats.mode, stats.microbuffer)):
             self.gi_stats = stats
-        if not stats.completed:
+        if not res.stats.completed:
             self.error("relighting: a render pass did not complete (GPU loop budget); the image "
                        "may be missing light", "warning")
         return img
@@ -554,6 +749,9 @@ class ViewerEngine:
         self.reset_gl_state()
         if self.renderer_available and not self.gi_failed:
             self.gi.finish()
+            if self._b_active:
+                self.gi_b.finish()
+                self._compare_metrics()
             self._advance_differential(float("inf"))   # batch images never depend on timing
             if self._room_dirty:
                 self.view.draw_room(cam, self.session.settings["view.splat_scale"],
@@ -580,8 +778,9 @@ class ViewerEngine:
 
     def release(self) -> None:
         """Free the GL resources (a new session replaces this engine)."""
-        if self.relighter is not None and hasattr(self.relighter, "release"):
-            self.guard("releasing the renderer", self.relighter.release)
+        for r in (self.relighter, self.relighter_b):
+            if r is not None and hasattr(r, "release"):
+                self.guard("releasing the renderer", r.release)
         self.view.release()
 
     def stats(self) -> dict:

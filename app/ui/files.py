@@ -151,3 +151,10 @@ def _keep_eye_inside(engine, margin: float = 0.1) -> None:
 
 _A = {"cloud": "a second cloud", "asset": "a second asset", "object": "a second asset",
       "photo": "a photo (open it from the viewer)", "session": "a session (use --session)"}
+
+
+def open_hdri(session: Session, path) -> None:
+    """Light the asset with the HDRI ``path`` (the Light panel's open button; a dropped .exr
+    stays the expansion's HDR photo). The engine loads it and reports a bad file."""
+    session.set_file("hdri", str(Path(path).resolve()))
+    session.settings.set("light.source", "hdri")

@@ -98,6 +98,8 @@ def draw_status(ui) -> None:
         dl.add_rect_filled((x0, y0), (x0 + bar_w * frac, y0 + 14), _col(0.3, 0.6, 1.0, 0.9), 3)
         label = e.gi.status_words()       # "refining 40%, about 6 s left"
         backed_text(dl, (x0 - 12 - imgui.calc_text_size(label).x, y0), label, (1, 1, 1))
+    if e.b_refining:
+        lines.append((f"B (compare): {e.gi_b.status_words()}", (0.7, 0.9, 1.0)))
     task = ui.hdr_task
     if task is not None and task.running:
         _, frac, stage = task.snapshot()
@@ -139,7 +141,36 @@ def draw_messages(ui) -> None:
     imgui.end()
 
 
+DIVIDER_GRIP = 12   # pixels either side of the A/B divider that grab it
+
+
+def draw_divider(ui) -> None:
+    """The A/B compare's divider (drawn by the composite) as a handle: an invisible imgui
+    button over it, so dragging it moves ``compare.split`` rather than orbiting the view."""
+    from app.ui.compare import split_column
+    e, s = ui.engine, ui.session.settings
+    if not (s["compare.enabled"] and e.compare_labels):
+        return
+    w, h = e.size
+    x = split_column(s["compare.split"], w)
+    imgui.set_next_window_pos((x - DIVIDER_GRIP, 0), imgui.Cond_.always)
+    imgui.set_next_window_size((2 * DIVIDER_GRIP, h), imgui.Cond_.always)
+    flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_background |
+             imgui.WindowFlags_.no_saved_settings | imgui.WindowFlags_.no_focus_on_appearing |
+             imgui.WindowFlags_.no_nav | imgui.WindowFlags_.no_move)
+    imgui.push_style_var(imgui.StyleVar_.window_padding, (0, 0))
+    imgui.begin("##ab divider", None, flags)
+    imgui.invisible_button("##divider", (2 * DIVIDER_GRIP, h))
+    if imgui.is_item_hovered() or imgui.is_item_active():
+        imgui.set_mouse_cursor(imgui.MouseCursor_.resize_ew)
+    if imgui.is_item_active():
+        s.set("compare.split", min(max(imgui.get_io().mouse_pos.x / max(w, 1), 0.0), 1.0))
+    imgui.end()
+    imgui.pop_style_var()
+
+
 def draw(ui) -> None:
+    draw_divider(ui)
     draw_capture_cameras(ui)
     draw_asset_gizmo(ui)
     draw_status(ui)

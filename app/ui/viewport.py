@@ -9,6 +9,9 @@ screenshot is exactly what the window shows under its panels. Every frame:
 3. the composite compute pass (shaders/viewer_composite.glsl) blends the room with the GI
    images handed over by app.ui.refine, tone maps, and writes an RGBA8 display image plus the
    linear composite,
+   With the A/B compare (app/ui/compare.py) it runs once per side, each dispatch clipped to
+   its side's columns, B's with its own GI images (``Side``), and a backdrop (an HDRI's
+   panorama) replaces the room behind a side an HDRI lights,
 4. the display image is blitted to the target framebuffer (no fragment pass: see the llvmpipe
    note in the project conventions).
 
@@ -27,7 +30,7 @@ from app.render.gpu_layout import (COMPOSITE_TEXEL, COMPOSITE_TILE, GI_TEXEL, GU
                                    ROOM_TEXEL, VIEW_IMG, VIEW_TEX, VIEWER_VERTEX)
 from app.render.programs import load_compute, load_program
 from app.render.splat import SplatRenderer, gl_mat, near_far, relative_view
-from app.render.tonemap import glsl_defines as tonemap_defines, index as tonemap_index
+from app.render.tonemap import index as tonemap_index
 
 BACKGROUND = (0.02, 0.02, 0.025)
 
@@ -42,6 +45,21 @@ def _texels(tex, rec) -> np.ndarray:
     return rec.flat(rec.view(tex.read())).reshape(th, tw, rec.words)
 
 
+class Side:
+    """One side of the A/B compare (app/ui/compare.py) where it differs from the viewport's own
+    inputs: its GI images (B's layer; None: the viewport's) and its backdrop (the HDRI's
+    panorama seen by the camera, in place of the room's splats, behind a depth cleared to the
+    far plane; None: the splats)."""
+
+    def __init__(self):
+        self.preview_tex = self.full_tex = None
+        self.backdrop_tex = self.backdrop_depth = self.backdrop_fbo = None
+
+    def textures(self):
+        return [t for t in (self.preview_tex, self.full_tex, self.backdrop_fbo,
+                            self.backdrop_tex, self.backdrop_depth) if t is not None]
+
+
 class ViewportRenderer:
     def __init__(self, ctx):
         import moderngl
@@ -49,10 +67,9 @@ class ViewportRenderer:
         self.ctx = ctx
         from app.ui import composite as twin
         # the upsampling's weights come from gen/joint_bilateral.glsl (app/pbgi/upsample.py); the
-        # tone mappers' indices and the false-colour bands from the registry (lib/tonemap.glsl)
+        # tone mappers' indices and the false-colour bands from the registry (gen/tonemap.glsl)
         weights = {"ROOM_DEPTH_SCALE": repr(float(twin.ROOM_DEPTH_SLACK[0])),
-                   "ROOM_DEPTH_BIAS": repr(float(twin.ROOM_DEPTH_SLACK[1])),
-                   **tonemap_defines()}
+                   "ROOM_DEPTH_BIAS": repr(float(twin.ROOM_DEPTH_SLACK[1]))}
         self.room_cs = load_compute(ctx, "viewer_composite.glsl", weights)
         self.asset_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, ASSET_PASS=1))
         self.label_cs = load_compute(ctx, "viewer_composite.glsl", dict(weights, LABEL_PASS=1))
@@ -70,6 +87,8 @@ class ViewportRenderer:
         self.label_size = (0, 0)
         self._targets = []
         self.scene_bounds = (np.zeros(3), np.ones(3))
+        self.side_a, self.side_b = Side(), Side()   # A keeps the viewport's GI images
+        self._side_labels = []                        # (texture, (w, h)) of A's and B's labels
 
     # -- resources -------------------------------------------------------------------------------
     def _texture(self, size, rec, data=None):
@@ -150,26 +169,87 @@ class ViewportRenderer:
         self.label_size = (w, h)
 
     # -- GI images from app.ui.refine ------------------------------------------------------------
-    def upload_preview(self, img: np.ndarray) -> None:
+    def upload_preview(self, img: np.ndarray, side: Side | None = None) -> None:
+        """Into the viewport's preview image, or ``side``'s (B's GI layer)."""
+        t = side or self
         h, w = img.shape[:2]
-        if self.preview_tex.size != (w, h):
-            self.preview_tex.release()
-            self.preview_tex = self._gi_texture((w, h))
-        self.preview_tex.write(_flip(img.astype("f4")).tobytes())
+        if t.preview_tex is None or t.preview_tex.size != (w, h):
+            if t.preview_tex is not None:
+                t.preview_tex.release()
+            t.preview_tex = self._gi_texture((w, h))
+        t.preview_tex.write(_flip(img.astype("f4")).tobytes())
 
-    def upload_full(self, img: np.ndarray, rects=None) -> None:
-        """Whole image when ``rects`` is None, else only those (x, y, w, h) top-left rectangles."""
+    def upload_full(self, img: np.ndarray, rects=None, side: Side | None = None) -> None:
+        """Whole image when ``rects`` is None, else only those (x, y, w, h) top-left rectangles;
+        into the viewport's full image or ``side``'s."""
+        t = side or self
         h, w = img.shape[:2]
-        if self.full_tex.size != (w, h):
-            self.full_tex.release()
-            self.full_tex = self._gi_texture((w, h))
+        if t.full_tex is None or t.full_tex.size != (w, h):
+            if t.full_tex is not None:
+                t.full_tex.release()
+            t.full_tex = self._gi_texture((w, h))
             rects = None
         if rects is None:
-            self.full_tex.write(_flip(img.astype("f4")).tobytes())
+            t.full_tex.write(_flip(img.astype("f4")).tobytes())
             return
         for x, y, rw, rh in rects:
             block = img[y:y + rh, x:x + rw].astype("f4")
-            self.full_tex.write(_flip(block).tobytes(), viewport=(x, h - y - rh, rw, rh))
+            t.full_tex.write(_flip(block).tobytes(), viewport=(x, h - y - rh, rw, rh))
+
+    def set_backdrop(self, side: Side, rgb: np.ndarray | None) -> None:
+        """``side`` shows ``rgb`` ((H, W, 3+) linear, row 0 at the top, the viewport's size)
+        instead of the room's splats, nothing in front of the asset; None: the splats again."""
+        if rgb is None:
+            for t in (side.backdrop_fbo, side.backdrop_tex, side.backdrop_depth):
+                if t is not None:
+                    t.release()
+            side.backdrop_tex = side.backdrop_depth = side.backdrop_fbo = None
+            return
+        w, h = self.size
+        if side.backdrop_tex is None or side.backdrop_tex.size != (w, h):
+            self.set_backdrop(side, None)
+            side.backdrop_tex = self._texture((w, h), ROOM_TEXEL)
+            side.backdrop_depth = self.ctx.depth_texture((w, h))
+            side.backdrop_depth.compare_func = ""
+            side.backdrop_fbo = self.ctx.framebuffer([side.backdrop_tex], side.backdrop_depth)
+        side.backdrop_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        img = np.ones((h, w, 4), np.float32)          # coverage 1: the panorama everywhere
+        img[..., :3] = np.asarray(rgb, np.float32)[..., :3]
+        side.backdrop_tex.write(_flip(img).tobytes())
+
+    def set_side_labels(self, images) -> None:
+        """A's and B's labels (RGBA8 text images, row 0 at the top); () removes them."""
+        for tex, _ in self._side_labels:
+            tex.release()
+        self._side_labels = []
+        for rgba in images:
+            h, w = rgba.shape[:2]
+            tex = self.ctx.texture((w, h), 4, _flip(rgba.astype(np.uint8)).tobytes())
+            self._side_labels.append((tex, (w, h)))
+
+    @property
+    def side_label_sizes(self):
+        return [size for _, size in self._side_labels]
+
+    def draw_side_labels(self, rects) -> None:
+        """Blend the side labels over the display image at ``rects`` (top-left x, y, w, h)."""
+        w, h = self.size
+        cs = self.label_cs
+        self.display_tex.bind_to_image(VIEW_IMG.DISPLAY, read=True, write=True)
+        for (tex, _), (x, y, lw, lh) in zip(self._side_labels, rects):
+            gl = (x, h - y - lh, lw, lh)
+            x0, y0 = max(gl[0], 0), max(gl[1], 0)
+            x1, y1 = min(gl[0] + lw, w), min(gl[1] + lh, h)
+            if x1 <= x0 or y1 <= y0:
+                continue
+            tex.use(location=VIEW_TEX.LABEL)
+            for key, val in (("u_size", (w, h)), ("u_label_rect", gl)):
+                if key in cs:
+                    cs[key].value = val
+            cs["u_offset"].value = (x0, y0)
+            cs["u_extent"].value = (x1 - x0, y1 - y0)
+            cs.run(-(-(x1 - x0) // COMPOSITE_TILE), -(-(y1 - y0) // COMPOSITE_TILE))
+            self.ctx.memory_barrier()
 
     # -- passes ----------------------------------------------------------------------------------
     def draw_room(self, camera: Camera, splat_scale: float = 1.0, eye_dome: bool = False) -> None:
@@ -199,22 +279,32 @@ class ViewportRenderer:
 
     def composite(self, camera: Camera, exposure: float, tonemap: str, raw_room: bool,
                   unavailable: bool, asset_rect=None, label_rect=None, room: bool = True,
-                  false_colour: bool = False) -> None:
+                  false_colour: bool = False, side: Side | None = None, columns=None,
+                  divider: int = -1) -> None:
         """Run the composite passes. Rectangles are (x, y, w, h) with row 0 at the TOP;
         ``room=False`` re-runs only the asset rectangle (after a GI update) and the label.
         ``tonemap`` is a name of app.render.tonemap.TONEMAPPERS; ``false_colour`` shows the
         EV bands (app.render.tonemap.false_colour) instead, except on raw (false-colour) room
-        colours."""
+        colours. The A/B compare runs it once per side: ``side`` (its GI images and
+        backdrop, app/ui/compare.py), ``columns`` (x0, x1): only those columns are written,
+        ``divider``: the column of the divider line (-1: none)."""
         w, h = self.size
+        side = side or self.side_a
+        gi = side if side.full_tex is not None else self
         if self.splat is not None:
             near, far = near_far(camera, *self.splat.bounds)
         else:
             near, far = 0.01, 100.0
-        self.room_tex.use(location=VIEW_TEX.ROOM)
-        self.room_depth.use(location=VIEW_TEX.ROOM_DEPTH)
+        if side.backdrop_tex is not None:
+            side.backdrop_tex.use(location=VIEW_TEX.ROOM)
+            side.backdrop_depth.use(location=VIEW_TEX.ROOM_DEPTH)
+            raw_room = False
+        else:
+            self.room_tex.use(location=VIEW_TEX.ROOM)
+            self.room_depth.use(location=VIEW_TEX.ROOM_DEPTH)
         self.gbuf_tex.use(location=VIEW_TEX.GBUF)
-        self.preview_tex.use(location=VIEW_TEX.PREVIEW)
-        self.full_tex.use(location=VIEW_TEX.FULL)
+        gi.preview_tex.use(location=VIEW_TEX.PREVIEW)
+        gi.full_tex.use(location=VIEW_TEX.FULL)
         self.label_tex.use(location=VIEW_TEX.LABEL)
         self.linear_tex.bind_to_image(VIEW_IMG.LINEAR, read=False, write=True)
         self.display_tex.bind_to_image(VIEW_IMG.DISPLAY, read=True, write=True)
@@ -223,18 +313,21 @@ class ViewportRenderer:
             lx, ly, lw, lh = label_rect
             gl_label = (lx, h - ly - lh, lw, lh)
         values = {
-            "u_size": (w, h), "u_preview_size": self.preview_tex.size,
-            "u_full_size": self.full_tex.size, "u_near": near, "u_far": far,
+            "u_size": (w, h), "u_preview_size": gi.preview_tex.size,
+            "u_full_size": gi.full_tex.size, "u_near": near, "u_far": far,
+            "u_divider": int(divider),
             "u_exposure": float(exposure), "u_tonemap": tonemap_index(tonemap),
             "u_false_colour": int(false_colour),
             "u_raw_room": int(raw_room), "u_unavailable": int(unavailable),
             "u_background": BACKGROUND, "u_label_rect": gl_label or (0, 0, 0, 0),
         }   # the samplers' units are their layout(binding = VIEW_TEX_*)
 
+        c0, c1 = (0, w) if columns is None else columns
+
         def run(cs, rect_gl):
             x, y, rw, rh = rect_gl
-            x0, y0 = max(x, 0), max(y, 0)
-            x1, y1 = min(x + rw, w), min(y + rh, h)
+            x0, y0 = max(x, 0, c0), max(y, 0)
+            x1, y1 = min(x + rw, w, c1), min(y + rh, h)
             if x1 <= x0 or y1 <= y0:
                 return
             for key, val in values.items():
@@ -282,5 +375,9 @@ class ViewportRenderer:
         for obj in self._targets + self._asset_buffers + [self.preview_tex, self.full_tex,
                                                           self.label_tex]:
             obj.release()
+        for side in (self.side_a, self.side_b):
+            for obj in side.textures():
+                obj.release()
+        self.set_side_labels(())
         if self.splat is not None:
             self.splat.release()

@@ -29,7 +29,7 @@ def test_table_is_consistent():
     """Every default is valid for its own declaration, keys are unique and grouped."""
     assert len(BY_KEY) == len(PARAMS)
     for s in PARAMS:
-        assert s.group in ("view", "pbgi", "hdr"), s.key
+        assert s.group in ("view", "light", "compare", "pbgi", "hdr"), s.key
         assert s.help.strip(), s.key
         assert s.clamp(s.default) == s.default and s.check(s.default) == s.default, s.key
         if s.kind in ("float", "int"):

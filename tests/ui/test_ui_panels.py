@@ -163,7 +163,8 @@ def test_widgets_follow_the_settings_table(ui):
     s.set("pbgi.microbuffer", 16)
     _draw(ui, 1)
     assert s.take_changes() == {"pbgi.microbuffer"}
-    assert {k.split(".")[0] for k in (x.key for x in PARAMS)} == {"view", "pbgi", "hdr"}
+    assert {k.split(".")[0] for k in (x.key for x in PARAMS)} == {"view", "light", "compare",
+                                                                   "pbgi", "hdr"}
 
 
 def test_engine_and_settings_do_not_import_the_ui():

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from app.ui.panels import brdf, capture, display, hdr, pbgi, scene, stats
+from app.ui.panels import brdf, capture, display, hdr, light, pbgi, scene, stats
 
 PANEL_WIDTH = 340
 SECTIONS = (("Scene", scene), ("Capture cameras", capture), ("HDR expansion", hdr),
-            ("PBGI", pbgi), ("BRDF", brdf), ("Display", display))
+            ("PBGI", pbgi), ("BRDF", brdf), ("Light & compare", light), ("Display", display))
 OPEN_BY_DEFAULT = {"Scene", "BRDF", "PBGI"}
 
 

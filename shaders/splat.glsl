@@ -61,11 +61,13 @@ void main() {
         gl_PointSize = u_max_point;
         return;
     }
-    vec2 pc = vec2(u_proj[0][0], u_proj[1][1]) * c.xy / zc;
-    vec2 lo = vec2(u_proj[0][0], u_proj[1][1]) * min((c.xy - r) / zn, (c.xy - r) / zf);
-    vec2 hi = vec2(u_proj[0][0], u_proj[1][1]) * max((c.xy + r) / zn, (c.xy + r) / zf);
-    vec2 half_px = max(hi - pc, pc - lo) * 0.5 * u_viewport;
-    gl_PointSize = clamp(2.0 * max(half_px.x, half_px.y) + 2.0, 1.0, u_max_point);
+    // the disc's bounding sphere projects to an ellipse around the projected centre whose
+    // semi-major axis is at most f r / (zn cos^2 t), t the angle off the view axis (zn: its
+    // nearest depth); the bounding cube's projection used before was up to several times wider,
+    // and every fragment of the sprite pays the ray-disc test (gl_FragDepth: no early depth test)
+    float cos_t = zc / length(c);
+    float half_px = u_proj[1][1] * 0.5 * u_viewport.y * r / (zn * cos_t * cos_t);
+    gl_PointSize = clamp(2.0 * half_px + 2.0, 1.0, u_max_point);
 }
 #endif
 

@@ -37,7 +37,9 @@ SIZE = 96
 SILHOUETTE_MARGIN_PX = 1      # (a): the outermost ring of the mesh's pixels may be uncovered
 SILHOUETTE_MAX_PX = 2.25      # (b): largest distance between the two outlines (sqrt(5): a
                               # pixel 2 across and 1 along the edge; measured 2.24)
-SILHOUETTE_MEAN_PX = 1.0      # (b): |backdrop XOR mesh| / outline length (measured 0.73)
+SILHOUETTE_MEAN_PX = 1.2      # (b): |backdrop XOR mesh| / outline length (measured 1.06 with
+                              # discs of 1x the 4th neighbour's distance, 0.73 with 0.7x, which
+                              # left 10+ px holes at 1280x800 close up; old splats 1.57)
 INTERIOR_MARGIN_PX = 3        # (c): distance kept from face edges and the outline
 COLOUR_MEAN_TOL = 0.01        # (c): mean abs error per face (colours span 0.2 .. 0.8;
                               # measured 0.0054 on the worst face)

@@ -11,6 +11,9 @@
 //   2 ACCUM:  additive; splats within u_eps x radius of the front surface add
 //             ROOM_TEXEL(w x colour x scale, w) and w x eye depth (out_depth_sum), where w is a
 //             truncated Gaussian of the distance to the disc's centre. splat_resolve.glsl divides.
+//   3 FAST:   while the viewer's camera moves: a camera-facing round sprite of the disc's
+//             projected size at its centre's depth, opaque, no ray-disc test and no written
+//             depth (so llvmpipe rejects hidden fragments early); no hole filling follows.
 #include "gen/splat.glsl"
 
 #ifndef SPLAT_PASS
@@ -37,6 +40,7 @@ flat out vec3 v_center;     // eye space
 flat out vec3 v_normal;     // eye space, unit
 flat out float v_r;         // world radius
 flat out vec3 v_color;
+flat out float v_keep;      // FAST: the disc's share of the sprite's half-size
 void main() {
     vec3 c = (u_view * vec4(in_position, 1.0)).xyz;
     vec3 n = mat3(u_view) * in_normal;
@@ -68,6 +72,8 @@ void main() {
     float cos_t = zc / length(c);
     float half_px = u_proj[1][1] * 0.5 * u_viewport.y * r / (zn * cos_t * cos_t);
     gl_PointSize = clamp(2.0 * half_px + 2.0, 1.0, u_max_point);
+    float r_px = u_proj[1][1] * 0.5 * u_viewport.y * r / zc;
+    v_keep = min(1.0, (r_px + 0.5) / (0.5 * gl_PointSize));
 }
 #endif
 
@@ -76,6 +82,7 @@ flat in vec3 v_center;
 flat in vec3 v_normal;
 flat in float v_r;
 flat in vec3 v_color;
+flat in float v_keep;
 uniform float u_scale;      // radiance multiplier (exposure is applied later, at tone mapping)
 #if SPLAT_PASS == 2
 layout(binding = SPLAT_TEX_FRONT) uniform sampler2D u_front;  // the DEPTH pass's window depth
@@ -85,6 +92,12 @@ float eye_depth(float window) {     // u_proj's inverse along z (symmetric persp
 }
 #endif
 void main() {
+#if SPLAT_PASS == 3
+    vec2 d = gl_PointCoord * 2.0 - 1.0;
+    if (dot(d, d) > v_keep * v_keep) discard;
+    out_room = room_texel_pack(RoomTexel(v_color * u_scale, 1.0));
+    out_depth_sum = -v_center.z;
+#else
     vec2 ndc = gl_FragCoord.xy / u_viewport * 2.0 - 1.0;
     vec3 dir = vec3(ndc.x / u_proj[0][0], ndc.y / u_proj[1][1], -1.0);  // eye ray, z = -1
     vec3 v = -normalize(v_center);          // towards the camera
@@ -112,6 +125,7 @@ void main() {
 #else
     out_room = room_texel_pack(RoomTexel(v_color * u_scale, 1.0));
     out_depth_sum = t;
+#endif
 #endif
 }
 #endif

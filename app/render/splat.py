@@ -93,7 +93,7 @@ class SplatRenderer:
     def __init__(self, cloud: PointCloud, radius: float | None = None, ctx=None):
         self.ctx = ctx or get_context()
         self.progs = [load_program(self.ctx, "splat.glsl",
-                                   {"SPLAT_PASS": k, "MIN_COS": repr(MIN_COS)}) for k in range(3)]
+                                   {"SPLAT_PASS": k, "MIN_COS": repr(MIN_COS)}) for k in range(4)]
         self.prog = self.progs[0]
         self.origin = cloud.positions.mean(axis=0) if len(cloud) else np.zeros(3)
         self.bounds = cloud.bounds() if len(cloud) else (np.zeros(3), np.ones(3))
@@ -107,7 +107,9 @@ class SplatRenderer:
         self.vbo_rad = self.ctx.buffer(SPLAT_VERTEX.field_array("radius", factors).tobytes())
         content = SPLAT_VERTEX.vertex_content({"position": self.vbo_pos, "color": self.vbo_col,
                                                "normal": self.vbo_nrm, "radius": self.vbo_rad})
-        self.vaos = [self.ctx.vertex_array(p, content) for p in self.progs]
+        # the FAST pass (3) never reads the normal: its compiler drops in_normal
+        self.vaos = [self.ctx.vertex_array(p, content, skip_errors=k == 3)
+                     for k, p in enumerate(self.progs)]
         self.vao = self.vaos[0]
         self.count = len(cloud)
         self.fill = SplatFill(self.ctx)
@@ -143,10 +145,14 @@ class SplatRenderer:
         self.vao.render(moderngl.POINTS, vertices=self.count)
 
     def render_to(self, camera: Camera, color_tex, depth_tex=None, scale: float = 1.0,
-                  eye_dome: bool = False, hole_px: int = MAX_HOLE_PX) -> None:
+                  eye_dome: bool = False, hole_px: int = MAX_HOLE_PX,
+                  fast: bool = False) -> None:
         """The full backdrop into ``color_tex`` (RGBA32F, ROOM_TEXEL: radiance x ``scale``,
         coverage 1 where a splat or a filled hole is) and, when given, ``depth_tex`` (the front
-        splats' window depth; filled holes keep the cleared 1.0). Both of the camera's size."""
+        splats' window depth; filled holes keep the cleared 1.0). Both of the camera's size.
+        ``fast``: the viewer's backdrop while its camera moves - camera-facing opaque sprites
+        without the ray-disc test, the blending or the hole filling (several times cheaper at
+        window sizes; the full backdrop follows when it stops)."""
         import moderngl
         ctx = self.ctx
         g = GUARD_PX
@@ -156,9 +162,16 @@ class SplatRenderer:
         try:
             if depth_tex is not None:   # the camera's own front depth, for the caller
                 depth_fbo = ctx.framebuffer(depth_attachment=depth_tex)
-                self._depth_pass(camera, depth_fbo, scale)
+                self._depth_pass(camera, depth_fbo, scale, 3 if fast else 1)
                 depth_fbo.release()
-            if self.categorical:        # labels: the front disc alone, weight 1
+            if fast:
+                self.fill.opaque_fbo.use()
+                self.fill.opaque_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                ctx.enable_only(moderngl.DEPTH_TEST | moderngl.PROGRAM_POINT_SIZE)
+                self._uniforms(self.progs[3], wide, size, scale)
+                self.vaos[3].render(moderngl.POINTS, vertices=self.count)
+                hole_px = 0
+            elif self.categorical:        # labels: the front disc alone, weight 1
                 self.fill.opaque_fbo.use()
                 self.fill.opaque_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
                 ctx.enable_only(moderngl.DEPTH_TEST | moderngl.PROGRAM_POINT_SIZE)
@@ -183,23 +196,23 @@ class SplatRenderer:
         self.fill.resolve(color_tex, eye_dome=eye_dome, hole_px=hole_px, guard=g,
                           pick=self.categorical)
 
-    def _depth_pass(self, camera: Camera, fbo, scale: float) -> None:
+    def _depth_pass(self, camera: Camera, fbo, scale: float, program: int = 1) -> None:
         import moderngl
         fbo.use()
         fbo.clear(depth=1.0)
         self.ctx.enable_only(moderngl.DEPTH_TEST | moderngl.PROGRAM_POINT_SIZE)
-        self._uniforms(self.progs[1], camera, fbo.size, scale)
-        self.vaos[1].render(moderngl.POINTS, vertices=self.count)
+        self._uniforms(self.progs[program], camera, fbo.size, scale)
+        self.vaos[program].render(moderngl.POINTS, vertices=self.count)
 
     def render(self, camera: Camera, scale: float = 1.0, eye_dome: bool = False,
-               hole_px: int = MAX_HOLE_PX) -> np.ndarray:
+               hole_px: int = MAX_HOLE_PX, fast: bool = False) -> np.ndarray:
         """(H, W, 4) float32 image of ROOM_TEXEL texels (radiance x ``scale``, coverage = 1
         where a splat covers the pixel or a small hole was filled), row 0 at the top."""
         w, h = camera.width, camera.height
         color = self.ctx.texture((w, h), ROOM_TEXEL.texel_components,
                                  dtype=ROOM_TEXEL.texture_dtype)
         try:
-            self.render_to(camera, color, None, scale, eye_dome, hole_px)
+            self.render_to(camera, color, None, scale, eye_dome, hole_px, fast)
             texels = ROOM_TEXEL.view(color.read())
             img = ROOM_TEXEL.flat(texels).reshape(h, w, ROOM_TEXEL.words)
         finally:

@@ -135,6 +135,7 @@ class ViewerEngine:
         self.timings: dict = {}
         self._last_camera_key = None
         self._room_dirty = True
+        self._room_fast = False         # the backdrop on screen is the moving camera's cheap one
         self._gbuffer_dirty = True      # the asset's G-buffer alone (a new placement)
         self._composite_dirty = True
         self._asset_dirty = True
@@ -505,11 +506,16 @@ class ViewerEngine:
         if key != self._last_camera_key:
             self._last_camera_key = key
             self._room_dirty = self._gi_dirty = True
+        if self._room_fast and not interacting:
+            self._room_dirty = True         # the camera stopped: the full backdrop now
         info = {"room": False, "gi": False}
         if self._room_dirty:
             t = time.perf_counter()
+            # while the camera moves, the cheap backdrop (several times faster at window size)
+            self._room_fast = bool(interacting)
             self.view.draw_room(cam, self.session.settings["view.splat_scale"],
-                                self.session.settings["view.eye_dome"])
+                                self.session.settings["view.eye_dome"], fast=self._room_fast)
+            info["room_fast"] = self._room_fast
             self.view.draw_gbuffer(cam)
             self.timings["room_ms"] = (time.perf_counter() - t) * 1e3
             self._draw_backdrops(cam)
@@ -753,10 +759,10 @@ class ViewerEngine:
                 self.gi_b.finish()
                 self._compare_metrics()
             self._advance_differential(float("inf"))   # batch images never depend on timing
-            if self._room_dirty:
+            if self._room_dirty or self._room_fast:
                 self.view.draw_room(cam, self.session.settings["view.splat_scale"],
                                     self.session.settings["view.eye_dome"])
-                self._room_dirty = False
+                self._room_dirty = self._room_fast = False
         self._upload_gi()
         self._composite(cam)
 

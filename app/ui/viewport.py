@@ -252,16 +252,19 @@ class ViewportRenderer:
             self.ctx.memory_barrier()
 
     # -- passes ----------------------------------------------------------------------------------
-    def draw_room(self, camera: Camera, splat_scale: float = 1.0, eye_dome: bool = False) -> None:
+    def draw_room(self, camera: Camera, splat_scale: float = 1.0, eye_dome: bool = False,
+                  fast: bool = False) -> None:
         """The room backdrop into room_tex / room_depth, as ``render --background`` draws it
         (SplatRenderer.render_to: surface splatting, hole filling, optional eye-dome lighting);
-        filled holes keep the cleared depth (the composite puts the asset in front there)."""
+        filled holes keep the cleared depth (the composite puts the asset in front there).
+        ``fast``: the cheap opaque sprites while the camera moves (SplatRenderer.render_to)."""
         self.room_fbo.use()
         self.room_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         if self.splat is not None:
             self.splat.radius = self.base_radius * float(splat_scale)
             self.ctx.enable_only(self.moderngl.NOTHING)
-            self.splat.render_to(camera, self.room_tex, self.room_depth, eye_dome=eye_dome)
+            self.splat.render_to(camera, self.room_tex, self.room_depth, eye_dome=eye_dome,
+                                 fast=fast)
             self.ctx.enable_only(self.moderngl.NOTHING)
             self.room_fbo.use()
 

@@ -501,3 +501,27 @@ def test_the_assets_shadow_lands_on_the_scan(ctx):
     s.set("pbgi.differential", False)
     e.finish_refinement()
     assert e._diff_shown_key is None
+
+
+def test_a_moving_camera_gets_the_cheap_backdrop_then_the_full_one(ctx, renders):
+    """While the camera moves the room is drawn with the FAST splat pass (opaque camera-facing
+    sprites, SplatRenderer.render(fast=True)); the first still frame redraws it in full, and so
+    does finish_refinement."""
+    e = make_engine(ctx, (80, 60))
+    e.frame()
+    e.nav.orbit(10, 0)
+    info = e.frame(interacting=True)
+    assert info["room"] and info["room_fast"]
+    cam = e.camera()
+    room = e.view.read_inputs()["room"][::-1]
+    np.testing.assert_allclose(room, e.view.splat.render(cam, fast=True), atol=1e-6)
+    info = e.frame()                                   # the camera stopped
+    assert info["room"] and not info["room_fast"]
+    room = e.view.read_inputs()["room"][::-1]
+    np.testing.assert_allclose(room, e.view.splat.render(cam), atol=1e-6)
+    assert not e.frame()["room"]                       # and stays until the camera moves
+    e.nav.orbit(10, 0)
+    e.frame(interacting=True)
+    e.finish_refinement()
+    room = e.view.read_inputs()["room"][::-1]
+    np.testing.assert_allclose(room, e.view.splat.render(e.camera()), atol=1e-6)

@@ -14,8 +14,12 @@ every key and button event, as imgui's own backends do).
 
 A release that arrives in the same frame as the motion before it would end a slider drag short:
 imgui drops the active widget on the frame it sees the button up, before applying that frame's
-mouse position. So such a release is handed to imgui one frame later (``frame_started``), after
-the frame that applied the last position; a slider then lands where the hand let go.
+mouse position. So such a release is held back (``frame_started``) until a frame has applied the
+last position: imgui's trickling queue may itself defer that position by a frame (a position
+after a button change in one frame waits for the next), so "one frame later" is not enough -
+a press, a drag and its release all between two slow frames left the slider where it was
+pressed. The release goes to the queue once imgui's mouse position is the last one sent (at
+most MAX_HOLD_FRAMES frames), and a slider then lands where the hand let go.
 
 Positions are in window pixels, top-left origin, as pyglet reports them through
 moderngl-window.
@@ -23,7 +27,11 @@ moderngl-window.
 
 from __future__ import annotations
 
+import math
+
 from imgui_bundle import imgui
+
+MAX_HOLD_FRAMES = 4     # a held release goes out after this many frames whatever the position
 
 NAMED = {"TAB": "tab", "LEFT": "left_arrow", "RIGHT": "right_arrow", "UP": "up_arrow",
          "DOWN": "down_arrow", "PAGE_UP": "page_up", "PAGE_DOWN": "page_down", "HOME": "home",
@@ -62,6 +70,8 @@ class ImguiInput:
         self._keys = _keymap(wnd.keys)
         self._moved = False          # a position event since imgui's last new_frame
         self._held_releases: list = []
+        self._held_frames = 0        # frames the held releases have waited
+        self._last_pos = None        # the last position sent to imgui
 
     def modifiers(self, mods=None) -> None:
         m = self.wnd.modifiers if mods is None else mods
@@ -72,6 +82,7 @@ class ImguiInput:
 
     def move(self, x, y) -> None:
         imgui.get_io().add_mouse_pos_event(float(x), float(y))
+        self._last_pos = (float(x), float(y))
         self._moved = True
 
     def imgui_button(self, button) -> int | None:
@@ -93,12 +104,21 @@ class ImguiInput:
         imgui.get_io().add_mouse_button_event(int(which), bool(down))
 
     def frame_started(self) -> None:
-        """Call right after ``imgui.new_frame()``: releases held back from the events of this
-        frame go to the queue for the next one."""
+        """Call right after ``imgui.new_frame()``: releases held back go to the queue for the
+        next frame once this one has applied the last position (module docstring)."""
+        self._moved = False
+        if not self._held_releases:
+            return
+        p = imgui.get_io().mouse_pos        # imgui floors the positions it is given
+        applied = self._last_pos is None or (p.x == math.floor(self._last_pos[0])
+                                             and p.y == math.floor(self._last_pos[1]))
+        if not applied and self._held_frames < MAX_HOLD_FRAMES:
+            self._held_frames += 1
+            return
         for which in self._held_releases:
             imgui.get_io().add_mouse_button_event(which, False)
         self._held_releases.clear()
-        self._moved = False
+        self._held_frames = 0
 
     @staticmethod
     def wheel(dx, dy) -> None:

@@ -20,6 +20,7 @@ def gui():
     from moderngl_window.context.pyglet.window import Window
     ctx = imgui.create_context()
     io = imgui.get_io()
+    io.set_ini_filename("")                  # no imgui.ini left in the working folder
     io.display_size = imgui.ImVec2(400, 300)
     io.delta_time = 1 / 60
     io.fonts.build()

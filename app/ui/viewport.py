@@ -243,13 +243,18 @@ class ViewportRenderer:
             if x1 <= x0 or y1 <= y0:
                 continue
             tex.use(location=VIEW_TEX.LABEL)
-            for key, val in (("u_size", (w, h)), ("u_label_rect", gl)):
-                if key in cs:
-                    cs[key].value = val
-            cs["u_offset"].value = (x0, y0)
-            cs["u_extent"].value = (x1 - x0, y1 - y0)
-            cs.run(-(-(x1 - x0) // COMPOSITE_TILE), -(-(y1 - y0) // COMPOSITE_TILE))
-            self.ctx.memory_barrier()
+            self._run_rect(cs, x0, y0, x1, y1, {"u_size": (w, h), "u_label_rect": gl})
+
+    def _run_rect(self, cs, x0, y0, x1, y1, values: dict) -> None:
+        """One compute pass of ``cs`` over the pixels [x0, x1) x [y0, y1) (GL rows), with the
+        uniforms of ``values`` it has."""
+        for key, val in values.items():
+            if key in cs:
+                cs[key].value = val
+        cs["u_offset"].value = (x0, y0)
+        cs["u_extent"].value = (x1 - x0, y1 - y0)
+        cs.run(-(-(x1 - x0) // COMPOSITE_TILE), -(-(y1 - y0) // COMPOSITE_TILE))
+        self.ctx.memory_barrier()
 
     # -- passes ----------------------------------------------------------------------------------
     def draw_room(self, camera: Camera, splat_scale: float = 1.0, eye_dome: bool = False,
@@ -333,13 +338,7 @@ class ViewportRenderer:
             x1, y1 = min(x + rw, w, c1), min(y + rh, h)
             if x1 <= x0 or y1 <= y0:
                 return
-            for key, val in values.items():
-                if key in cs:
-                    cs[key].value = val
-            cs["u_offset"].value = (x0, y0)
-            cs["u_extent"].value = (x1 - x0, y1 - y0)
-            cs.run(-(-(x1 - x0) // COMPOSITE_TILE), -(-(y1 - y0) // COMPOSITE_TILE))
-            self.ctx.memory_barrier()
+            self._run_rect(cs, x0, y0, x1, y1, values)
 
         if room:
             run(self.room_cs, (0, 0, w, h))

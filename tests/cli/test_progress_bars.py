@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import subprocess
 import sys
 
 from app.io.pointcloud import save_cloud
 from tests.support import scenes as S
+from tests.support.terminal import read_terminal
 
 
 def _render_args(d):
@@ -26,26 +26,13 @@ def _render_args(d):
             "--out", str(d / "o.exr")]
 
 
-def _read_all(fd) -> str:
-    out = b""
-    while True:
-        try:
-            chunk = os.read(fd, 65536)
-        except OSError:                 # the terminal's other end closed
-            break
-        if not chunk:
-            break
-        out += chunk
-    return out.decode(errors="replace")
-
-
 def test_render_draws_a_bar_of_its_passes_on_a_terminal(tmp_path):
     args = _render_args(tmp_path)
     master, slave = os.openpty()
     try:
         res = subprocess.run(args, stderr=slave, stdout=subprocess.PIPE, timeout=600)
         os.close(slave)
-        drawn = _read_all(master)
+        drawn = read_terminal(master)
     finally:
         os.close(master)
     assert res.returncode == 0, drawn
@@ -66,12 +53,7 @@ def test_expand_progress_is_a_bar_on_a_terminal_and_lines_elsewhere(monkeypatch,
             show(0.25, "patchmatch")
             show(1.0, "poisson")
         tty.flush()
-        drawn = ""                 # a terminal hands the output over in pieces: read them all
-        while select.select([master], [], [], 0.5)[0]:
-            chunk = os.read(master, 65536)
-            if not chunk:
-                break
-            drawn += chunk.decode(errors="replace")
+        drawn = read_terminal(master)
     os.close(master)
     monkeypatch.undo()
     assert "expand" in drawn and "100/100" in drawn and "poisson" in drawn

@@ -19,6 +19,7 @@ import pytest
 from PIL import Image
 
 from tests.support import scenes as S
+from tests.support.terminal import read_terminal
 from app.cli import main
 from app.io.exr import read_exr_layers
 from app.io.pointcloud import save_cloud
@@ -265,12 +266,7 @@ def test_progress_bar_only_on_a_terminal(monkeypatch, caplog):
             for _ in range(3):
                 bar.update(1)
         tty.flush()
-        drawn = ""                 # a terminal hands the output over in pieces: read them all
-        while select.select([master], [], [], 0.5)[0]:
-            chunk = os.read(master, 65536)
-            if not chunk:
-                break
-            drawn += chunk.decode(errors="replace")
+        drawn = read_terminal(master)
         assert "frames" in drawn and "3/3" in drawn
         with progress(3, "hidden", quiet=True) as bar:
             bar.update(3)

@@ -109,9 +109,8 @@ void main() {
     uint k;
     uint it = cut_raster(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
     // A loop cut short by the driver leaves k < count: resume at the unfinished node.
-    uint resume = (it == cost && k == count) ? node : cut_list_node[min(k, count - 1u)];
-    if (count == 0u) resume = node;
-    uint flags = (resume >= end ? WALK_DONE : 0u) | (it == cost ? 0u : WALK_CUT_SHORT);
+    uint resume = k == count ? node : cut_list_node[k];
+    uint flags = (resume >= end ? WALK_DONE : 0u) | (k == count ? 0u : WALK_CUT_SHORT);
     state[i] = ClassicState(resume, st.visited + steps, st.flags | flags, st.tests + it);
     if (resume < end) atomicAdd(remaining, 1u);
 }

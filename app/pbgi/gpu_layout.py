@@ -290,7 +290,8 @@ MB_BANDS = Record("MbBands", (
     Field("first", "uint", "first further elevation band of grid pixel (x, y)"),
     Field("count", "uint", "number of further bands"),
     Field("prefix", "uint", "summed-area prefix of count over [0, x) x [0, y)"),
-    Pad(1),
+    Field("elevation", "uint", "lower elevation of the pixel's bands (low 16 bits) and the "
+                               "elevation one band spans (high 16 bits), in 1/65535 of pi / 2"),
 ), word="uint", doc="micro-buffer grid pixel index, (M + 1) x (M + 1) texels")
 
 # -- far-field sharing and the gather -------------------------------------------------------------

@@ -105,7 +105,10 @@ def micro_pixel_table(m: int, samples: int = 1024) -> dict:
     angle about ANY normal n the region lies above is n . flux (flux.z = weight); pixel
     (E,) its grid pixel; extra_first, extra_count (M*M,) where a pixel's further bands start and
     how many there are; prefix (M + 1, M + 1) the summed-area table of extra_count, so that a
-    rectangle's entry count is its area plus four look-ups (rect_entries); entries = E.
+    rectangle's entry count is its area plus four look-ups (rect_entries); elevation_lo,
+    elevation_step (M*M,) the elevation where band b of a pixel starts is elevation_lo +
+    b * elevation_step (band 0 reaches down to the horizon), so a rasteriser can skip the bands
+    a node's elevations miss; entries = E.
     """
     if not MIN_SIZE <= m <= MAX_SIZE:
         raise ValueError(f"micro-buffer size must be in [{MIN_SIZE}, {MAX_SIZE}], got {m}")
@@ -140,6 +143,7 @@ def micro_pixel_table(m: int, samples: int = 1024) -> dict:
     prefix[1:, 1:] = extra_count.reshape(m, m).cumsum(0).cumsum(1)
     return {"dir": dirs, "weight": area, "solid_angle": omega, "flux": flux, "pixel": pix,
             "extra_first": extra_first, "extra_count": extra_count, "prefix": prefix,
+            "elevation_lo": e_lo, "elevation_step": (e_hi - e_lo) / split,
             "entries": len(pix)}
 
 
@@ -173,7 +177,16 @@ def index_bytes(m: int) -> bytes:
     rec["first"][:m, :m] = t["extra_first"].reshape(m, m)
     rec["count"][:m, :m] = t["extra_count"].reshape(m, m)
     rec["prefix"] = t["prefix"]
+    rec["elevation"][:m, :m] = (_elevation_units(t["elevation_lo"])
+                                | (_elevation_units(t["elevation_step"]) << 16)).reshape(m, m)
     return rec.tobytes()
+
+
+ELEVATION_UNIT = (np.pi / 2) / 65535.0     # MB_BANDS.elevation's 16-bit fractions of pi / 2
+
+
+def _elevation_units(angle: np.ndarray) -> np.ndarray:
+    return np.clip(np.rint(np.asarray(angle) / ELEVATION_UNIT), 0, 65535).astype(np.uint32)
 
 
 def entries(m: int) -> int:

@@ -166,31 +166,37 @@ void cut_test_entry(MbNode nd, uint kk, vec3 T, vec3 B, vec3 N, uint receiver) {
     }
 }
 
-// Rasterise cut_list_node[0 .. count) (``cost`` entry tests in all: mb_rect_entries of each
-// rectangle) into the micro-buffer of batch receiver ``receiver``: one flat loop over
-// (node, entry) with mb_cursor (no inner loop), so the loop count is the budgeted ``cost`` and
-// lanes of a SIMD group that rasterise different nodes stay busy. Returns the iterations done;
-// ``k_out`` = the first node not finished (count when all are done): a loop the driver cut
-// short returns < cost.
+// The cap of node a's raster (lib/microbuffer.glsl: mb_cap) - of the sphere the per-entry test
+// uses (cut_node), so the spans hold every entry the test can hit.
+MbCap cut_cap(MbNode nd, vec3 T, vec3 B, vec3 N) { return mb_cap(nd.dv, nd.d2, nd.r2, T, B, N); }
+
+// Rasterise cut_list_node[0 .. count) (at most ``cost`` entry tests in all: mb_rect_entries of
+// each rectangle; the cap's row spans take fewer) into the micro-buffer of batch receiver
+// ``receiver``: one flat loop over (node, entry) with mb_cursor (no inner loop), so lanes of a
+// SIMD group that rasterise different nodes stay busy. Returns the iterations done; ``k_out`` =
+// the first node not finished (count when all are done: anything less means the driver cut
+// the loop short).
 uint cut_raster(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, uint receiver, int m,
                 float inv_cell_area, out uint k_out) {
     uint k = 0u;                        // list entry
     MbCursor cur;                       // entry within the node's rectangle
     MbNode nd;
+    MbCap cap;
     uvec4 rect = uvec4(0u);
     bool load = true;
     uint it;
-    for (it = 0u; it < cost; ++it) {
+    for (it = 0u; it < cost && k < count; ++it) {
         if (load) {
             nd = cut_node(cut_list_node[k], p, inv_cell_area);
             rect = mb_unpack_rect(cut_list_rect[k]);
-            cur = mb_cursor(rect);
+            cap = cut_cap(nd, T, B, N);
+            cur = mb_cursor(rect, cap, m);
             load = false;
         }
         cut_test_entry(nd, mb_cursor_entry(cur, m), T, B, N, receiver);
-        if (!mb_cursor_next(cur, rect)) { k++; load = true; }
+        if (!mb_cursor_next(cur, rect, cap, m)) { k++; load = true; }
     }
-    k_out = (it == cost) ? count : k;
+    k_out = k;
     return it;
 }
 
@@ -208,12 +214,13 @@ uint cut_raster_nested(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, ui
     for (k = 0u; k < count; ++k) {
         MbNode nd = cut_node(cut_list_node[k], p, inv_cell_area);
         uvec4 rect = mb_unpack_rect(cut_list_rect[k]);
-        MbCursor cur = mb_cursor(rect);
+        MbCap cap = cut_cap(nd, T, B, N);
+        MbCursor cur = mb_cursor(rect, cap, m);
         bool more = true;
         uint j = 0u;
         for (; more; ++j) {
             cut_test_entry(nd, mb_cursor_entry(cur, m), T, B, N, receiver);
-            more = mb_cursor_next(cur, rect);
+            more = mb_cursor_next(cur, rect, cap, m);
         }
         it += j;
         if (more) break;                // the driver cut the inner loop short

@@ -13,7 +13,8 @@ Parts, from each render's own timers (app/pbgi/stats.py, every one measured betw
 * ``gather``: the final gather with the BRDF;
 * ``other``: the rest of ``ms`` (buffer set-up, read-back).
 
-Node visits per receiver are the walk's own count (``nodes_visited``, a mean). ``floor_ms`` is
+Node visits and micro-buffer entry tests per receiver are the walks' own counts (means; the
+lobe walk's separately, over all receivers). ``floor_ms`` is
 what those visits cost at the plain per-pixel walk's rate the guide measured on this machine
 (FLOOR_VISITS_PER_S), i.e. how far the cut is from a walk that does nothing but visit nodes.
 Every mode runs on the same demo scene in one run, interleaved, the fastest of ``--repeat``
@@ -71,6 +72,9 @@ def parts(s) -> dict:
     out["other_ms"] = max(s.ms - s.ms_gbuffer - s.ms_cut - s.ms_lobe - s.ms_gather, 0.0)
     out["receivers"] = s.receivers
     out["visits_per_receiver"] = float(s.nodes_visited)
+    out["tests_per_receiver"] = float(s.splat_tests or 0.0)
+    out["lobe_visits_per_receiver"] = float(s.lobe_visited)
+    out["lobe_tests_per_receiver"] = float(s.lobe_tests)
     visits = float(s.nodes_visited) * s.receivers
     out["floor_ms"] = visits / FLOOR_VISITS_PER_S * 1e3
     out["cut_over_floor"] = s.ms_cut / out["floor_ms"] if out["floor_ms"] > 0 else float("nan")
@@ -110,8 +114,9 @@ def run(args) -> list[dict]:
 
 def markdown(records: list[dict]) -> str:
     head = ("| mode | material | ms | G-buffer | cut (walk + raster) | lobe | gather | other | "
-            "visits / receiver | floor ms | cut / floor |")
-    lines = [head, "|" + "---|" * 11]
+            "visits / receiver | entry tests / receiver | lobe visits, tests / receiver | "
+            "floor ms | cut / floor |")
+    lines = [head, "|" + "---|" * 13]
     for rec in records:
         c, m = rec["case"], rec["metrics"]
         pct = (lambda k: f"{m[k]:.0f} ({100 * m[k] / m['ms']:.0f}%)" if m["ms"] > 0 else "-")
@@ -120,7 +125,9 @@ def markdown(records: list[dict]) -> str:
             cut += f" [far {m['far_ms']:.0f}, near {m['near_ms']:.0f}]"
         lines.append(f"| {c['mode']} | {c['material']} | {m['ms']:.0f} | {pct('gbuffer_ms')} | "
                      f"{cut} | {pct('lobe_ms')} | {pct('gather_ms')} | {pct('other_ms')} | "
-                     f"{m['visits_per_receiver']:.0f} | {m['floor_ms']:.1f} | "
+                     f"{m['visits_per_receiver']:.0f} | {m['tests_per_receiver']:.0f} | "
+                     f"{m['lobe_visits_per_receiver']:.0f}, {m['lobe_tests_per_receiver']:.0f} | "
+                     f"{m['floor_ms']:.1f} | "
                      f"{m['cut_over_floor']:.1f} |")
     return "\n".join(lines)
 

@@ -270,6 +270,9 @@ class MicroBufferMode(RenderMode):
                 ctx.finish()
                 stats.ms_lobe += (time.perf_counter() - tl) * 1e3
                 stats.lobe_incomplete += lobe_figures["incomplete"]
+                share = count / max(n, 1)        # batch means -> means over all receivers
+                stats.lobe_visited += lobe_figures["visited"] * share
+                stats.lobe_tests += lobe_figures["tests"] * share
             tg = time.perf_counter()
             frames = held.frames if reuse else batches[-1].frames
             frame.gather.run(frame.receivers, frame.materials, frame.output, first, count, m,

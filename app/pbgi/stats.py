@@ -113,6 +113,8 @@ class RenderStats:
     ms_lobe: float = 0.0              # the glossy receivers' lobe micro-buffers (app/pbgi/lobe.py)
     lobe_receivers: bool = False      # lobe micro-buffers were used (a glossy material)
     lobe_incomplete: int = 0          # receivers whose lobe walk did not complete
+    lobe_visited: float = 0.0         # BSH nodes a receiver's lobe walk visited, mean
+    lobe_tests: float = 0.0           # lobe micro-pixel ray tests per receiver, mean
     asset_surfels: int = 0            # the asset's surfels in the tree (0: the room's alone)
     asset_bounces: int = 0            # diffuse bounces they carry
     ms_asset: float = 0.0             # building the asset's surfel tree and bounce when this

@@ -49,6 +49,11 @@ uniform uint u_node_count;      // BSH_END
 uniform vec3 u_camera;          // camera position relative to the hierarchy origin
 uniform float u_leaf_radius;    // a leaf is a disc of at least this radius (the scan's surface)
 
+// Every micro-pixel's ray and solid angle (lobe_cell: two hashes and the warp's trigonometry)
+// once per receiver and dispatch, not once per node that covers it: a micro-pixel is ray cast
+// against ~10-30 accepted nodes. LOBE_CELLS = rings x sectors (app/pbgi/lobe.py).
+vec4 lobe_rays[LOBE_CELLS];
+
 void lobe_write(uint receiver, uint k, uint key, uint node) {
     ivec2 c = ivec2(int(k), int(receiver));
     if (key < lobe_entry_at(c).key) lobe_entry_store(c, MbEntry(key, node));
@@ -72,6 +77,12 @@ void main() {
         return;
     }
     LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, u_rings, u_sectors);
+    for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {
+        vec3 L;
+        float omega;
+        lobe_cell(F, c, L, omega);
+        lobe_rays[c] = vec4(L, omega);
+    }
 
     uint count = 0u, cost = 0u, steps = 0u;
     while (node < end && steps < u_steps) {
@@ -136,6 +147,7 @@ void main() {
 
     // ---- ray cast the accepted nodes through their micro-pixels: one flat loop --------------
     uint k = 0u, n = 0u, it;
+
     MbNode nd;
     uint rect = 0u, cells = 0u;
     bool load = true;
@@ -153,11 +165,9 @@ void main() {
             load = false;
         }
         uint cell = lobe_rect_cell(F, rect, n);
-        vec3 L;
-        float omega;
-        lobe_cell(F, cell, L, omega);
-        if (omega > 0.0) {
-            uint key = mb_hit_key(nd, L);
+        vec4 ray = lobe_rays[cell];
+        if (ray.w > 0.0) {
+            uint key = mb_hit_key(nd, ray.xyz);
             if (key != MB_EMPTY) lobe_write(i, cell, key, nd.index);
         }
         if (++n == cells) { k++; load = true; }

@@ -158,13 +158,16 @@ class LobeBuffers:
     def bind(self) -> None:
         self.image.bind_to_image(IMAGE.LOBE, read=True, write=True)
 
-    def program(self, absent: tuple = ()):
-        """The walk compiled without the code of the BRDF features no material uses
+    def program(self, cells: int, absent: tuple = ()):
+        """The walk for ``cells`` micro-pixels (the size of its per-receiver ray table),
+        compiled without the code of the BRDF features no material uses
         (gather.absent_features; lib/lobe.glsl leaves the anisotropic stretch out)."""
-        key = tuple(absent)
+        key = (int(cells), tuple(absent))
         if key not in self._progs:
-            defines = {"LIST_CAP": self.list_cap}
-            defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in key})
+            if self.steps + self.splat_budget + self.list_cap + cells >= LOOP_LIMIT:
+                raise ValueError("the lobe walk's loops would pass llvmpipe's loop limit")
+            defines = {"LIST_CAP": self.list_cap, "LOBE_CELLS": int(cells)}
+            defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in absent})
             self._progs[key] = load_compute(self.ctx, "pbgi_lobe.glsl", defines=defines)
         return self._progs[key]
 
@@ -184,7 +187,7 @@ class LobeBuffers:
         self.counter.bind_to_storage_buffer(SSBO.COUNTERS)
         nodes.use()
         self.bind()
-        prog = self.program(absent)
+        prog = self.program(settings.cells, absent)
         values = {"u_first": first, "u_count": count, "u_rings": settings.rings,
                   "u_sectors": settings.sectors, "u_pass": settings.pass_index,
                   "u_glossy_below": settings.glossy_below, "u_stop_factor": settings.stop_factor,

@@ -147,9 +147,9 @@ void main() {
 
     // ---- ray cast the accepted nodes through their micro-pixels: one flat loop --------------
     uint k = 0u, n = 0u, it;
-
     MbNode nd;
     uint rect = 0u, cells = 0u;
+    LobeCursor cur;
     bool load = true;
     for (it = 0u; it < cost; ++it) {
         if (load) {
@@ -161,10 +161,12 @@ void main() {
             }
             rect = cut_list_rect[k];
             cells = lobe_rect_cells(rect);
+            cur = lobe_cursor(F, rect);
             n = 0u;
             load = false;
         }
-        uint cell = lobe_rect_cell(F, rect, n);
+        uint cell = cur.cell;
+        lobe_cursor_next(F, cur, rect);
         vec4 ray = lobe_rays[cell];
         if (ray.w > 0.0) {
             uint key = mb_hit_key(nd, ray.xyz);

@@ -338,12 +338,23 @@ uint lobe_rect_stretched(LobeFrame f, vec3 l, float sin_b, float cos_b, out floa
 
 uint lobe_rect_cells(uint r) { return (((r >> 8u) & 255u) - (r & 255u) + 1u) * (r >> 24u); }
 
-// Cell of step n of a packed rectangle (rings r0..r1 x ns sectors from s0, wrapping).
-uint lobe_rect_cell(LobeFrame f, uint r, uint n) {
-    uint ns = r >> 24u;
-    uint ring = (r & 255u) + n / ns;
-    uint sector = ((r >> 16u) & 255u) + n % ns;
-    if (sector >= f.sectors) sector -= f.sectors;
-    return ring * f.sectors + sector;
+// Walks the cells of a packed rectangle (rings r0..r1 x ns sectors from s0, wrapping) one per
+// step without integer division (llvmpipe runs it lane by lane):
+//   LobeCursor c = lobe_cursor(f, r);  ... c.cell ...;  lobe_cursor_next(f, c, r);
+struct LobeCursor { uint cell; uint row_start; uint k; };   // cell, its ring's first cell, k-th of the ring
+LobeCursor lobe_cursor(LobeFrame f, uint r) {
+    uint row = (r & 255u) * f.sectors;
+    return LobeCursor(row + ((r >> 16u) & 255u), row, 0u);
+}
+void lobe_cursor_next(LobeFrame f, inout LobeCursor c, uint r) {
+    c.k++;
+    if (c.k == (r >> 24u)) {                       // next ring, first sector
+        c.k = 0u;
+        c.row_start += f.sectors;
+        c.cell = c.row_start + ((r >> 16u) & 255u);
+    } else {
+        c.cell++;
+        if (c.cell == c.row_start + f.sectors) c.cell = c.row_start;   // wrap
+    }
 }
 #endif

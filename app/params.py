@@ -255,8 +255,9 @@ PARAMS: tuple[Param, ...] = (
        "below. Off: the asset is lit as if it were alone and convex. A convex asset needs "
        "none and is rendered without them (it cannot shadow or light itself).",
        label="asset self-occlusion", redo="gi"),
-    _i("pbgi.asset_bounces", 1, "Diffuse bounces the asset's surfels carry (inter-reflection: "
-       "the asset lights itself); 0 = occlusion only. Needs asset self-occlusion.", 0, 2, "",
+    _i("pbgi.asset_bounces", 1, "Bounces the asset's surfels carry (inter-reflection: the asset "
+       "lights itself; diffuse, or glossy for a metal); 0 = occlusion only. Needs asset "
+       "self-occlusion.", 0, 2, "",
        label="asset bounces", redo="gi"),
     _i("pbgi.asset_surfels", 8192, "Surfels the asset is sampled into (self-occlusion, bounce "
        "and its shadow on the scan); more resolve smaller creases.", 1024, 262144, "",

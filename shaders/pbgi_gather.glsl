@@ -51,6 +51,22 @@ uniform vec3 u_camera;         // camera position relative to the hierarchy orig
 #ifdef RADIANCE_CUBEMAP
 layout(binding = TEX_ENV) uniform samplerCube u_env;
 uniform float u_env_texel_omega;   // solid angle of one cube-map texel at a face centre
+#else
+// The asset's glossy bounce (app/pbgi/asset_scene.py, app/pbgi/nodetex.py: set_directional):
+// the asset's nodes from `first` on send L(d) = colour + G d towards unit direction d (here -w,
+// from the node to the receiver), G's columns at texels 1 + 3 j + c of asset node j; texel 0
+// holds (first / 65536, first % 65536, count) - a first no node reaches when the bounce is
+// diffuse or there is none.
+layout(binding = TEX_ASSET_DIR) uniform sampler2D u_asset_dir;
+vec3 node_radiance(uint node, vec3 w, uint first, int width) {
+    vec3 L = tnode_color(node);
+    if (node < first) return L;
+    int t = 1 + 3 * int(node - first);
+    vec3 gx = texelFetch(u_asset_dir, ivec2(t % width, t / width), 0).rgb;
+    vec3 gy = texelFetch(u_asset_dir, ivec2((t + 1) % width, (t + 1) / width), 0).rgb;
+    vec3 gz = texelFetch(u_asset_dir, ivec2((t + 2) % width, (t + 2) / width), 0).rgb;
+    return max(L - (gx * w.x + gy * w.y + gz * w.z), vec3(0.0));
+}
 #endif
 
 void main() {
@@ -72,6 +88,11 @@ void main() {
 
     uint mm = mb_entries();
     vec3 sum = vec3(0.0);
+#ifndef RADIANCE_CUBEMAP
+    vec2 first_halves = texelFetch(u_asset_dir, ivec2(0), 0).xy;
+    uint asset_dir_first = (uint(first_halves.x) << 16) | uint(first_halves.y);
+    int asset_dir_width = textureSize(u_asset_dir, 0).x;
+#endif
 #ifdef LOBE_BUFFER
     bvec2 terms = lobe_terms(Q, u_glossy_below);
     bool lobed = any(terms) && Q.n_dot_v > 0.0;
@@ -95,7 +116,7 @@ void main() {
 #else
         uint node = mb_load(i, k).node;
         if (node == MB_EMPTY) continue;
-        vec3 L = tnode_color(node);
+        vec3 L = node_radiance(node, w, asset_dir_first, asset_dir_width);
 #endif
 #ifdef LOBE_BUFFER
         vec3 fb, fs, fc;
@@ -128,7 +149,7 @@ void main() {
 #else
             uint node = lobe_entry_at(ivec2(int(k), int(i))).node;
             if (node == MB_EMPTY) continue;
-            vec3 L = tnode_color(node);
+            vec3 L = node_radiance(node, w, asset_dir_first, asset_dir_width);
 #endif
             vec3 fb, fs, fc;
             principled_lobes_prepared(Q, w, fb, fs, fc);

@@ -10,7 +10,15 @@ itself) and the asset's shadow and bounce on the scan (differential rendering).
   (app/pbgi/point_gather.py) with the previous bounce's radiance on the asset (0 for the first:
   one bounce = direct light from the room, shadowed by the asset itself); never redone when
   only the camera moves. The first gather does not depend on the materials (it sees a black
-  asset) and is kept: with one bounce a material edit only rescales it by the new albedo;
+  asset) and is kept: with one bounce a material edit only rescales it by the new albedo.
+  A metal (``glossy``: any material with metallic > 0) gets the glossy bounce instead: the same
+  surfels gathered with their real material, seen from VIEWS far-away cameras spread over the
+  sphere (PointGather.views: one walk, a gather per camera), and per surfel the plane
+  L(d) = colour + G d least-squares fitted to the views above its horizon (``fit_directional``);
+  the gather evaluates it towards each receiver (app/pbgi/nodetex.py: set_directional). A rough
+  metal's outgoing radiance is smooth in the direction, a plane holds it (in the white furnace
+  within 3-6% of its directional albedo, which is a quarter below the base colour the diffuse
+  bounce used); it depends on the material, so a material edit gathers again;
 * the node textures the modes walk (colours of the latest bounce);
 * the differential: the scan's points within ``REACH`` asset radii of the asset's bounding
   sphere are gathered without the asset (the room's tree) and with it (the joined tree, bounce
@@ -39,14 +47,17 @@ import numpy as np
 
 from app.pbgi.nodetex import NodeTextures
 from app.pbgi.point_gather import PointGather
-from app.pbgi.scene_tree import SceneTree, asset_hierarchy, join, recolor_asset
-from app.pbgi.surfels import Surfels, sample_surfels, surfel_albedo
+from app.pbgi.scene_tree import (SceneTree, asset_gradients, asset_hierarchy, join,
+                                 recolor_asset)
+from app.pbgi.surfels import Surfels, sample_surfels, surfel_albedo, surfel_materials
 
 REACH = 2.0          # the differential's region: points within (1 + REACH) x the asset radius
 FADE = 0.75          # ... the change fading to 0 over its last FADE x the asset radius
 SAMPLES = 2048       # the differential gathers at most this many of them and interpolates
 BOUNCE_SAMPLES = 2048  # the bounce gathers at most this many surfels and interpolates
 NEIGHBOURS = 12      # the interpolation's samples per point
+VIEWS = 24           # the glossy bounce: far cameras (a Fibonacci sphere) each surfel is seen from
+MIN_VIEW_COS = 0.05  # ... those more than this above its horizon fit its L(d) = colour + G d
 
 
 @dataclass
@@ -74,6 +85,37 @@ class Differential:
         out = np.array(base, dtype=np.float32, copy=True)
         out[self.index] = np.maximum(out[self.index] + self.delta, 0.0)
         return out
+
+
+def glossy(materials) -> bool:
+    """Whether the asset's bounce is the glossy one (a metal among its materials)."""
+    return any(float(m.metallic) > 0.0 for m in materials)
+
+
+def view_directions(k: int = VIEWS) -> np.ndarray:
+    """(k, 3) unit directions spread evenly over the sphere (a Fibonacci lattice)."""
+    i = np.arange(k) + 0.5
+    z = 1.0 - 2.0 * i / k
+    phi = np.pi * (1.0 + 5.0 ** 0.5) * i
+    r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def fit_directional(directions: np.ndarray, normals: np.ndarray, radiance: np.ndarray):
+    """Per point, (colour (n, 3), G (n, 3, 3) [channel, axis]): the least-squares plane
+    L(d) = colour + G d through its radiance (k, n, 3) seen from the k ``directions`` more than
+    MIN_VIEW_COS above its horizon (a small ridge keeps G finite where few are)."""
+    d = np.asarray(directions, np.float64)
+    w = (np.asarray(normals, np.float64) @ d.T > MIN_VIEW_COS).astype(np.float64)   # (n, k)
+    a = np.concatenate([np.ones((len(d), 1)), d], axis=1)                            # (k, 4)
+    ata = np.einsum("nk,ka,kb->nab", w, a, a) + np.diag([1e-9, 1e-3, 1e-3, 1e-3])
+    atl = np.einsum("nk,ka,knc->nac", w, a, np.asarray(radiance, np.float64))
+    c = np.linalg.solve(ata, atl)                                                    # (n, 4, 3)
+    return c[:, 0, :].astype(np.float32), c[:, 1:, :].transpose(0, 2, 1).astype(np.float32)
+
+
+def _bytes(a) -> bytes | None:
+    return None if a is None else np.ascontiguousarray(a).tobytes()
 
 
 def _evenly(index: np.ndarray, most: int) -> np.ndarray:
@@ -134,32 +176,52 @@ class AssetScene:
         return self._tree
 
     def radiance(self, tree_key, tree: SceneTree, room, mesh, materials, surfels: Surfels,
-                 bounces: int) -> np.ndarray:
-        """Per surfel outgoing radiance after ``bounces`` diffuse bounces."""
+                 bounces: int):
+        """Per surfel outgoing radiance after ``bounces`` bounces: (colour (n, 3), G or None).
+        Diffuse materials: colour = rho / pi x E. With a metal (``glossy``) the surfels are
+        gathered with their real material from VIEWS far cameras and L(d) = colour + G d is
+        fitted to what each sees (module docstring)."""
         albedo = surfel_albedo(surfels, mesh, materials)
-        key = (tree_key, int(bounces), albedo.tobytes())
+        shiny = glossy(materials)
+        from app.pbgi.brdf import pack_params
+        key = (tree_key, int(bounces), albedo.tobytes(),
+               tuple(pack_params(m).tobytes() for m in materials) if shiny else None)
         if self._bounce is not None and self._bounce[0] == key:
             return self._bounce[1]
         rad = np.zeros((len(surfels), 3), np.float32)
+        grads = None
         every = np.arange(len(surfels))
         sample = _evenly(every, BOUNCE_SAMPLES)
         rel = surfels.positions[sample] - room.origin
         offset = 0.25 * surfels.radius
         for b in range(int(bounces)):
+            if shiny:
+                _, tex, _ = self._textures((tree_key, rad.tobytes(), _bytes(grads)), tree, rad,
+                                           grads)
+                mats, index = surfel_materials(surfels, mesh, materials)
+                dirs = view_directions()
+                seen = self.points.views(rel, surfels.normals[sample], tex, room.cell_size,
+                                         mats, index[sample], albedo[sample], dirs,
+                                         offset=offset)
+                colour, g = fit_directional(dirs, surfels.normals[sample], seen)
+                colour, g = _interpolate(surfels.positions, surfels.normals, sample, every,
+                                         [colour, g.reshape(len(sample), 9)])
+                rad, grads = colour.astype(np.float32), g.reshape(-1, 3, 3).astype(np.float32)
+                continue
             if b == 0 and self._direct is not None and self._direct[0] == tree_key:
                 e = self._direct[1]          # the first gather sees a black asset: no albedo
             else:
-                _, tex, _ = self._textures((tree_key, rad.tobytes()), tree, rad)
+                _, tex, _ = self._textures((tree_key, rad.tobytes(), None), tree, rad)
                 e = self.points.run(rel, surfels.normals[sample], tex, room.cell_size,
                                     offset=offset)
                 e = _interpolate(surfels.positions, surfels.normals, sample, every, [e])[0]
                 if b == 0:
                     self._direct = (tree_key, e)
             rad = (albedo * e).astype(np.float32)
-        self._bounce = (key, rad)
-        return rad
+        self._bounce = (key, (rad, grads))
+        return rad, grads
 
-    def _textures(self, key, tree: SceneTree, radiance: np.ndarray):
+    def _textures(self, key, tree: SceneTree, radiance: np.ndarray, gradients=None):
         if self._upload is None or self._upload[0] != key:
             if self._upload is not None:
                 self._upload[1].release()
@@ -168,6 +230,8 @@ class AssetScene:
             buf = self.ctx.buffer(np.ascontiguousarray(coloured.nodes).tobytes())
             tex = NodeTextures(self.ctx, buf, len(coloured))
             tex.asset_first, tex.surfel_area = tree.asset_first, tree.surfel_area
+            if gradients is not None:
+                tex.set_directional(asset_gradients(tree, gradients), tree.asset_first)
             self._upload = (key, buf, tex, coloured)
         return self._upload[1], self._upload[2], self._upload[3]
 
@@ -178,14 +242,18 @@ class AssetScene:
         if self._tree is None or self._tree[0] != key or self._surfels is None \
                 or self._surfels[0] != (asset_version, count):
             return False
-        albedo = surfel_albedo(self._surfels[1], mesh, materials)
-        bounce = (key, int(params.asset_bounces), albedo.tobytes())
-        if self._bounce is not None and self._bounce[0] == bounce:
-            return True
-        # one bounce whose first gather is kept: a material edit only rescales it
+        if self._bounce is not None and self._bounce[0][:3] == (
+                key, int(params.asset_bounces),
+                surfel_albedo(self._surfels[1], mesh, materials).tobytes()) and (
+                self._bounce[0][3] is None) == (not glossy(materials)):
+            if not glossy(materials):
+                return True
+            from app.pbgi.brdf import pack_params
+            return self._bounce[0][3] == tuple(pack_params(m).tobytes() for m in materials)
+        # one diffuse bounce whose first gather is kept: a material edit only rescales it
         return int(params.asset_bounces) == 0 or (
-            int(params.asset_bounces) == 1 and self._direct is not None
-            and self._direct[0] == key)
+            int(params.asset_bounces) == 1 and not glossy(materials)
+            and self._direct is not None and self._direct[0] == key)
 
     # -- what the Relighter asks -----------------------------------------------------------
     def nodes(self, room, geo_version, mesh, asset_version: int, materials, params) -> SceneNodes:
@@ -194,9 +262,10 @@ class AssetScene:
         count = int(params.asset_surfels)
         tree_key, tree = self.tree(room, geo_version, mesh, asset_version, count)
         surfels = self.surfels(mesh, asset_version, count)
-        rad = self.radiance(tree_key, tree, room, mesh, materials, surfels,
-                            int(params.asset_bounces))
-        _, tex, coloured = self._textures((tree_key, rad.tobytes()), tree, rad)
+        rad, grads = self.radiance(tree_key, tree, room, mesh, materials, surfels,
+                                   int(params.asset_bounces))
+        _, tex, coloured = self._textures((tree_key, rad.tobytes(), _bytes(grads)), tree, rad,
+                                          grads)
         self.seconds = time.perf_counter() - t0
         return SceneNodes(tex, len(tree), tree.asset_first, ("asset",) + tree_key,
                           coloured.nodes)
@@ -205,7 +274,7 @@ class AssetScene:
                          asset_version: int, materials, params) -> tuple:
         """What the differential depends on (builds the asset's tree and bounce if needed)."""
         scene = self.nodes(room, geo_version, mesh, asset_version, materials, params)
-        return (scene.key, hash(self._upload[0][1]), cloud_version)
+        return (scene.key, hash(self._upload[0][1:]), cloud_version)
 
     def differential(self, *args, chunk: int | None = None):
         """The asset's shadow and bounce on the scan's points near it (module docstring):
@@ -269,8 +338,14 @@ class AssetScene:
         return diff
 
     @property
+    def bounce(self):
+        """The latest bounce per surfel: (colour (n, 3), G (n, 3, 3) or None), or None."""
+        return None if self._bounce is None else self._bounce[1]
+
+    @property
     def nbytes(self) -> int:
-        return 0 if self._upload is None else self._upload[1].size + self._upload[2].nbytes
+        return 0 if self._upload is None else (self._upload[1].size + self._upload[2].nbytes
+                                               + self._upload[2].directional_nbytes)
 
     def release(self) -> None:
         self.points.release()

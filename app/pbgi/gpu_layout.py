@@ -58,6 +58,8 @@ TEXTURE = Units("texture units: layout(binding = TEX_X) uniform sampler, Texture
                     "MB_INDEX": (6, "micro-buffer grid pixel -> bands (MB_BANDS)"),
                     "MB_FLUX": (7, "micro-buffer entry flux (MB_FLUX), the gather with "
                                    "FRAME_NORMALS"),
+                    "ASSET_DIR": (8, "the asset's glossy bounce: how its nodes' radiance varies "
+                                     "with direction (app/pbgi/nodetex.py: directional)"),
                 })
 IMAGE = Units("image units: layout(format, binding = IMG_X) uniform image, bind_to_image",
               "IMG_", {

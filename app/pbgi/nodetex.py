@@ -9,6 +9,8 @@ app/pbgi/gpu_layout.py (BSH_SPHERE, BSH_CONE, BSH_LINK, BSH_COLOR; gen/bsh_textu
 
 from __future__ import annotations
 
+import numpy as np
+
 from app.pbgi.gpu_layout import (BSH_COLOR, BSH_CONE, BSH_LINK, BSH_SPHERE, BSH_TEX_WIDTH, IMAGE,
                                  SSBO, TEXTURE, dispatch_groups)
 from app.render.programs import load_compute
@@ -47,6 +49,33 @@ class NodeTextures:
         # ``asset_first`` on, each surfel of area ``surfel_area``; none by default
         self.asset_first = self.count
         self.surfel_area = 0.0
+        self.directional = None
+        self.set_directional(None)
+
+    def set_directional(self, gradients, first: int = 0) -> None:
+        """The asset's glossy bounce (app/pbgi/asset_scene.py): its nodes from ``first`` on
+        send L(d) = colour + G d towards unit direction d, ``gradients`` (k, 3, 3): per node
+        G's columns dL/dx, dL/dy, dL/dz (RGB each). The gather (shaders/pbgi_gather.glsl:
+        node_radiance) reads texel 0 = (first / 65536, first % 65536, k) - two halves, exact in
+        a float whatever the node count - and node first + j's columns at texels 1 + 3 j + c,
+        rows of WIDTH. None: every node's radiance is its colour (texel 0 holds a first no node
+        reaches, 2^32 - 1), so the gather needs no variant for it."""
+        import moderngl
+        if self.directional is not None:
+            self.directional.release()
+        g = np.zeros((0, 3, 3), np.float32) if gradients is None else \
+            np.asarray(gradients, np.float32).reshape(-1, 3, 3)
+        texels = np.zeros((1 + 3 * len(g), 4), np.float32)
+        first = int(first) if len(g) else (1 << 32) - 1
+        texels[0, :3] = (float(first >> 16), float(first & 0xFFFF), float(len(g)))
+        texels[1:, :3] = g.transpose(0, 2, 1).reshape(-1, 3)   # texel 1 + 3 j + c: column c
+        h = (len(texels) + WIDTH - 1) // WIDTH
+        data = np.zeros((h * WIDTH, 4), np.float32)
+        data[:len(texels)] = texels
+        w = WIDTH if h > 1 or len(g) else 1
+        self.directional = self.ctx.texture((w, h), 4, data[:w * h].tobytes(), dtype="f4")
+        self.directional.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.directional_nbytes = w * h * 16
 
     def set_uniforms(self, prog) -> None:
         """The tree's uniforms of lib/pbgi_cut.glsl a walk shader kept: where the asset's
@@ -59,8 +88,12 @@ class NodeTextures:
     def use(self) -> None:
         for name, (_, unit, _) in TEXTURES.items():
             self.textures[name].use(location=unit)
+        self.directional.use(location=TEXTURE.ASSET_DIR)
 
     def release(self) -> None:
         for t in self.textures.values():
             t.release()
         self.textures = {}
+        if self.directional is not None:
+            self.directional.release()
+        self.directional = None

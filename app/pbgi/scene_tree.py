@@ -24,6 +24,17 @@ import numpy as np
 from app.pbgi import layout
 from app.pbgi.hierarchy import Hierarchy, build_bsh, merge_spheres, recolor, round_spheres
 
+# A surfel leaf's disc radius, in units of the radius of the surfel's own area (sqrt(A / (n pi))).
+# Discs of exactly that area cover only ~2/3 of a face: the surfels are spread evenly over the
+# triangles but drawn at random inside each one (Poisson-like), and the gaps, 1/e of a face, let
+# the room shine through the asset. Measured on the blocks' plate (8192 surfels): 66% of its
+# front covered at 1.0, 80% at 1.25, 91% at 1.5; the rough metal blocks' faces that look at the
+# plate were 1.5-2x too bright in the direct light (tests/pbgi/test_asset_reference.py: 14.0% ->
+# 8.8% in the apartment; diffuse 5.9% -> 3.5%). Wider discs only overlap more on a flat face
+# (the depth test keeps one), and the neighbours of a receiver on a convex part stay behind it
+# (app/pbgi/surfels.py).
+LEAF_DISC = 1.5
+
 
 @dataclass
 class SceneTree:
@@ -38,12 +49,13 @@ class SceneTree:
 
 def asset_hierarchy(surfels) -> Hierarchy:
     """The surfels' BSH: unpruned, cells of half the surfel spacing (one surfel per leaf, mostly),
-    leaves at least the surfel's disc (see app/pbgi/surfels.py). Unpruned because a cluster
-    leaf of similar normals is a thicker, wider disc that shadows its own neighbours: measured
-    on the knot, pruning at tn = 0.98 made it 7-12% darker for no speed."""
+    leaves at least LEAF_DISC x the surfel's disc (see app/pbgi/surfels.py). Unpruned because a
+    cluster leaf of similar normals is a thicker, wider disc that shadows its own neighbours:
+    measured on the knot, pruning at tn = 0.98 made it 7-12% darker for no speed."""
     spacing = 2.0 * surfels.radius
     return build_bsh(surfels.positions, surfels.normals, np.zeros((len(surfels), 3), np.float32),
-                     cell_size=0.5 * spacing, min_leaf_radius=surfels.radius, prune=False)
+                     cell_size=0.5 * spacing, min_leaf_radius=LEAF_DISC * surfels.radius,
+                     prune=False)
 
 
 def join(room: Hierarchy, asset: Hierarchy, surfel_area: float = 0.0) -> SceneTree:
@@ -85,3 +97,13 @@ def recolor_asset(tree: SceneTree, colors: np.ndarray) -> SceneTree:
     nodes["color"][tree.asset_first:] = recolor(tree.asset, colors)["color"]
     _set_root(nodes, 1, tree.asset_first)
     return SceneTree(nodes, tree.asset_first, tree.asset, tree.surfel_area)
+
+
+def asset_gradients(tree: SceneTree, gradients: np.ndarray) -> np.ndarray:
+    """(asset nodes, 3, 3) float32: per asset node the mean of per-surfel ``gradients`` (n, 3, 3)
+    below it (the glossy bounce's G, app/pbgi/nodetex.py: set_directional), node order from
+    ``tree.asset_first`` on - the same point-count-weighted mean as the colours, so a cluster
+    sends the mean of its surfels' L(d) = colour + G d."""
+    g = np.asarray(gradients, np.float64)
+    cols = [recolor(tree.asset, g[:, :, c])["color"] for c in range(3)]
+    return np.stack(cols, axis=2).astype(np.float32)

@@ -22,8 +22,9 @@ surfel spacing) so that the per-disc test holds.
 
 The bounce: a surfel carries outgoing radiance rho / pi x E, its irradiance gathered through the
 joined tree (so it is shadowed by the asset as well) with rho its base colour - the diffuse
-bounce. A metal's glossy inter-reflection is approximated by that diffuse one (its base colour is
-its reflectance at normal incidence): the reference protocol measures what that costs.
+bounce. A metal's bounce is glossy instead: its outgoing radiance as a function of direction,
+gathered with its real material (app/pbgi/asset_scene.py; ``surfel_materials`` gives each surfel
+its material).
 """
 
 from __future__ import annotations
@@ -114,3 +115,13 @@ def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
             out[sel] = np.clip(np.asarray(m.base_color, np.float32)[:3] * surfels.texture[sel],
                                0.0, 1.0)
     return out
+
+
+def surfel_materials(surfels: Surfels, mesh, materials) -> tuple[list, np.ndarray]:
+    """(materials, per-surfel row into them): ``materials`` one per mesh material, or one for
+    all (as surfel_albedo reads them)."""
+    materials = list(materials)
+    if len(materials) == 1 and len(mesh.materials) > 1:
+        materials = materials * len(mesh.materials)
+    index = np.clip(mesh.material_ids[surfels.face].astype(np.int64), 0, len(materials) - 1)
+    return materials, index.astype(np.uint32)

@@ -5,10 +5,11 @@ albedo estimate against the demo room's true albedo.
 
 Tolerances (4x4-pooled relative RMSE over the asset; the references' own noise floor is 0.7-1.5%):
 measured on the tuning room (apartment) and the held-out one (city) at M = 24, 8192 surfels,
-one bounce - diffuse blocks 5.4-6.2% (8% is the target), the sphere 1.0-1.3% (5%), rough metal
-blocks 11.1-14.2%: above the 10% target (a metal's glossy inter-reflection is approximated by a
-diffuse bounce), asserted at 16% so that a regression fails, and always below half of the error
-without the asset in the tree (23-47%).
+one bounce, Classic and Hybrid - diffuse blocks 3.5-4.6% (asserted at 5.5%; the issue's target
+is 8%; 5.6-5.9% before the surfel leaves closed the asset's faces, app/pbgi/scene_tree.py:
+LEAF_DISC), rough metal blocks 7.2-8.3% (the 10% target; 11.1-14.0% with the leaves' gaps and a
+diffuse bounce for the metal, app/pbgi/asset_scene.py: the glossy bounce), the sphere 0.7-1.3%
+(5%), and always below half of the error without the asset in the tree (23-47%).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from app.bench import asset_scenes as A
 from app.bench.glossy import evaluate
 from app.pbgi.renderer import Relighter, RenderParams
 
-TARGET = {("blocks", "diffuse"): 0.08, ("blocks", "rough_metal"): 0.16,
+TARGET = {("blocks", "diffuse"): 0.055, ("blocks", "rough_metal"): 0.10,
           ("sphere", "diffuse"): 0.05}
 
 

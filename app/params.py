@@ -272,6 +272,13 @@ PARAMS: tuple[Param, ...] = (
        "use: no subsurface, anisotropy, sheen or clearcoat code when every material has that "
        "parameter at 0 (one program per feature set, cached); off: one program with all of "
        "them. The same image either way.", label="shader variants", redo="gi", ui=False),
+    _i("pbgi.lobe_only_microbuffer", 8, "Micro-buffer size M used instead of "
+       "pbgi.microbuffer when every material is a glossy metal (metallic 1 without a metallic "
+       "texture, smooth enough that the lobe micro-buffers take its whole specular lobe): its "
+       "light comes from the lobe buffers, and the cosine micro-buffer then holds only the "
+       "lobe's far tail (a metal has no diffuse, sheen or subsurface). 0 = always "
+       "pbgi.microbuffer; 1-7 act as 8.", 0, 32, "px", label="M for glossy metals",
+       redo="gi", ui=False),
     _b("pbgi.differential", True, "Differential rendering: the scan's points near the asset get "
        "its shadow and bounce (gathered with and without the asset, times the points' estimated "
        "albedo) in the background composite.", label="shadow on the scan", redo="gi"),
@@ -467,7 +474,7 @@ RENDER_KEYS = ("pbgi.mode", "pbgi.microbuffer", "pbgi.omega_tr_factor",
                "pbgi.parallax_tolerance", "pbgi.memory_budget_mb", "pbgi.envmap_face",
                "pbgi.glossy_below", "pbgi.asset_occlusion", "pbgi.asset_bounces",
                "pbgi.asset_surfels", "pbgi.stop_factor", "pbgi.shader_variants",
-               "pbgi.envmap_beyond")
+               "pbgi.envmap_beyond", "pbgi.lobe_only_microbuffer")
 EXPAND_KEYS = tuple(p.key for p in PARAMS if p.group == "hdr")
 
 

@@ -125,7 +125,7 @@ def add_arguments(parser) -> None:
                         help="also write a contact sheet: per material kind, rows reference / "
                              "lobe (this renderer) / cosine only (before), columns roughness, "
                              "in the first mode")
-    add_param_options(parser, "bench glossy")     # --microbuffer
+    add_param_options(parser, "bench glossy")     # --microbuffer, --lobe-only-microbuffer
 
 
 def run(args) -> list[dict]:
@@ -140,7 +140,8 @@ def run(args) -> list[dict]:
     if not modes or any(m not in RENDER_MODES for m in modes):
         raise UsageError(None, f"--modes must be among {', '.join(RENDER_MODES)}, "
                                f"got {args.modes!r}")
-    m = param_values(args, "bench glossy")["pbgi.microbuffer"]
+    values = param_values(args, "bench glossy")
+    m, lobe_only_m = values["pbgi.microbuffer"], values["pbgi.lobe_only_microbuffer"]
     if args.repeat < 1:
         raise UsageError(None, "--repeat must be >= 1")
     room = Path(args.room).stem
@@ -166,7 +167,8 @@ def run(args) -> list[dict]:
         for _ in range(args.repeat):
             rl.forget_microbuffers()
             res = rl.render(cam, [mat], RenderParams(mode=mode, microbuffer=m,
-                                                     glossy_below=gb))
+                                                     glossy_below=gb,
+                                                     lobe_only_microbuffer=lobe_only_m))
             if best is None or res.stats.ms < best.stats.ms:
                 best = res
         return best

@@ -46,7 +46,7 @@ COMMAND_FLAGS: dict[str, dict[str, str]] = {
     "bench table3": _flags(("pbgi.memory_budget_mb", "pbgi.omega_tr_factor",
                             "pbgi.parallax_tolerance")),
     "bench classic": _flags(("pbgi.memory_budget_mb",)),
-    "bench glossy": _flags(("pbgi.microbuffer",)),
+    "bench glossy": _flags(("pbgi.microbuffer", "pbgi.lobe_only_microbuffer")),
     "bench asset": _flags(("pbgi.microbuffer", "pbgi.asset_surfels")),
     "bench profile": _flags(("pbgi.microbuffer",)),
     "bench expand": _flags(("hdr.face_size", "hdr.poisson_solver", "hdr.seed",

@@ -108,6 +108,23 @@ def needs_lobe(materials, glossy_below: float) -> bool:
     return False
 
 
+LOBE_BLEND = 0.3      # lib/lobe.glsl's LOBE_BLEND: the lobe buffer takes the whole specular
+                      # lobe up to (1 - LOBE_BLEND) x glossy_below (tests/pbgi/test_lobe_only.py)
+
+
+def lobe_only(materials, glossy_below: float) -> bool:
+    """Is every material's light gathered from the lobe micro-buffers alone? A metal (metallic
+    1 and no metallic texture, which could lower it) has no diffuse, sheen or subsurface lobe,
+    and below (1 - LOBE_BLEND) glossy_below its whole specular lobe and any clearcoat are in the
+    lobe buffer (a roughness texture only lowers the roughness: glTF multiplies). The cosine
+    micro-buffer then holds only the specular lobe's tail outside the lobe's domain (about 1%
+    of its energy), so a coarse one is enough (pbgi.lobe_only_microbuffer)."""
+    full = float(glossy_below) * (1.0 - LOBE_BLEND)
+    return bool(materials) and all(
+        float(m.metallic) >= 1.0 and m.metallic_roughness_texture is None
+        and float(m.roughness) < full for m in materials)
+
+
 def bytes_per_receiver(settings: LobeSettings | None) -> int:
     return 0 if settings is None else settings.cells * MB_ENTRY.nbytes + CLASSIC_STATE.nbytes
 

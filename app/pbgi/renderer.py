@@ -35,8 +35,8 @@ from app.errors import ScanlightError
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
 from app.pbgi.gpu_layout import GATHER_OUTPUT, RECEIVER
 from app.pbgi.hierarchy import recolor
-from app.pbgi.microbuffer import MicroBuffers, entries
-from app.pbgi.lobe import LobeBuffers, LobeSettings, needs_lobe, surface_radius
+from app.pbgi.microbuffer import MIN_SIZE, MicroBuffers, entries
+from app.pbgi.lobe import LobeBuffers, LobeSettings, lobe_only, needs_lobe, surface_radius
 from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
 from app.pbgi.modes import create_mode
 from app.pbgi.nodetex import NodeTextures
@@ -368,7 +368,12 @@ class Relighter:
         if w < 1 or h < 1 or x0 < 0 or y0 < 0 or x0 + w > W or y0 + h > H:
             raise ScanlightError(None, f"tile {tuple(tile)} is outside the {W}x{H} image")
         tile = (x0, y0, w, h)
-        m = int(params.microbuffer)
+        m = m_lobe = int(params.microbuffer)       # the lobe buffers follow the M asked for
+        lobe_only_m = int(params.lobe_only_microbuffer)
+        if (params.mode != "envmap" and params.glossy_below > 0.0 and 0 < lobe_only_m
+                and lobe_only(materials, params.glossy_below)):
+            m = min(m, max(lobe_only_m, MIN_SIZE))
+            params = replace(params, microbuffer=m)
         ctx = self.ctx
         from app.pbgi.gather import absent_features
         from app.pbgi.gbuffer import material_table, pass_jitter
@@ -430,7 +435,7 @@ class Relighter:
                    None if pixels is None else hash(np.asarray(pixels, bool).tobytes()))
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
-            lobe = LobeSettings.for_microbuffer(m, params.glossy_below, pass_index)
+            lobe = LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index)
             if self._lobe is None:
                 self._lobe = LobeBuffers(ctx)
             stats.lobe_receivers = True

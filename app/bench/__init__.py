@@ -11,4 +11,5 @@ BENCHES = {
     "tradeoff": "app.bench.tradeoff",
     "nearfield": "app.bench.nearfield",
     "profile": "app.bench.profile",
+    "viewer": "app.bench.viewer",
 }

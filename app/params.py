@@ -274,7 +274,8 @@ PARAMS: tuple[Param, ...] = (
        "them. The same image either way.", label="shader variants", redo="gi", ui=False),
     _i("pbgi.lobe_only_microbuffer", 8, "Micro-buffer size M used instead of "
        "pbgi.microbuffer when every material is a glossy metal (metallic 1 without a metallic "
-       "texture, smooth enough that the lobe micro-buffers take its whole specular lobe): its "
+       "texture, roughness 0.1 or more and smooth enough that the lobe micro-buffers take its "
+       "whole specular lobe): its "
        "light comes from the lobe buffers, and the cosine micro-buffer then holds only the "
        "lobe's far tail (a metal has no diffuse, sheen or subsurface). 0 = always "
        "pbgi.microbuffer; 1-7 act as 8.", 0, 32, "px", label="M for glossy metals",

@@ -24,7 +24,9 @@ def test_blend_matches_the_shader():
 
 @pytest.mark.parametrize("materials,expected", [
     ([Material(roughness=0.25, **GOLD)], True),
-    ([Material(roughness=0.0, **GOLD)], True),
+    ([Material(roughness=0.0, **GOLD)], False),                      # a mirror's tail
+    ([Material(roughness=0.05, **GOLD)], False),
+    ([Material(roughness=0.1, **GOLD)], True),
     ([Material(roughness=0.25, clearcoat=1.0, **GOLD)], True),       # clearcoat: lobe buffer
     ([Material(roughness=0.34, **GOLD)], True),                      # below 0.7 x 0.5
     ([Material(roughness=0.36, **GOLD)], False),                     # shared with the cosine

@@ -104,8 +104,9 @@ def test_memory_budget_splits_batches_without_changing_the_image(furnace):
 
 def test_material_edit_reuses_microbuffers(furnace):
     """A material change re-runs only the G-buffer and the gather, and gives exactly what a
-    fresh render gives."""
-    a, b = S.diffuse(0.3), Material(base_color=(0.8, 0.2, 0.1), roughness=0.2, metallic=1.0)
+    fresh render gives. (Roughness 0.4: a metal smoother than 0.35 would be a lobe-only frame,
+    whose cosine micro-buffer is coarser - a new cut, tested in test_lobe_only.py.)"""
+    a, b = S.diffuse(0.3), Material(base_color=(0.8, 0.2, 0.1), roughness=0.4, metallic=1.0)
     furnace.render(FURNACE_CAM, [a], RenderParams(mode="classic", microbuffer=16))
     edited = furnace.render(FURNACE_CAM, [b], RenderParams(mode="classic", microbuffer=16))
     assert edited.stats.reused_microbuffers

@@ -7,8 +7,8 @@
 // left: state[i] is a ClassicState (gen/walk_state.glsl), state[i].next the node to resume from
 // (BSH_END when done). Within a dispatch the walk
 // comes first (at most u_steps nodes, at most LIST_CAP accepted nodes, at most u_splat_budget
-// entry tests: mb_rect_entries of each accepted rectangle), then one flat loop rasterises the
-// accepted nodes, entry by entry (mb_cursor: no inner loop). Re-rasterising a node is
+// entry tests: mb_rect_entries of each accepted rectangle), then the accepted nodes are
+// rasterised, node by node (lib/pbgi_cut.glsl: cut_raster). Re-rasterising a node is
 // idempotent (strict depth test), so a slice cut short anywhere resumes at the first node whose
 // rasterisation did not finish and nothing is lost or counted twice.
 //
@@ -105,7 +105,7 @@ void main() {
         steps++;
     }
 
-    // ---- rasterise the accepted nodes: one flat loop over (node, entry) ------------------------
+    // ---- rasterise the accepted nodes ----------------------------------------------------------
     uint k;
     uint it = cut_raster(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
     // A loop cut short by the driver leaves k < count: resume at the unfinished node.

@@ -9,8 +9,7 @@
 // come in any order and cut_write's tie-break makes the result order-independent.
 // Lists are walked top-down (coarsest pixel first): neighbouring receivers - the lanes of one
 // SIMD group, Z-ordered - share the coarse lists and so walk the same sub-trees side by side,
-// which is why the accepted nodes are rasterised with cut_raster_nested (Classic, whose lanes
-// are out of step, uses the flat cut_raster; both give the same entries).
+// and rasterise the same nodes in the same order (lib/pbgi_cut.glsl: cut_raster, node by node).
 //
 // llvmpipe's loop budget: like Classic, one dispatch does a bounded slice (u_steps walk steps,
 // CUT_LIST_CAP accepted nodes, u_splat_budget micro-pixel tests) and saves where to resume in
@@ -124,7 +123,7 @@ void main() {
     }
 
     uint k;
-    uint it = cut_raster_nested(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
+    uint it = cut_raster(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
     uint flags = 0u;
     if (k < count) {                         // the driver cut the loop short: redo this slice
         flags = WALK_CUT_SHORT;

@@ -57,9 +57,15 @@ uniform float u_env_texel_omega;   // solid angle of one cube-map texel at a fac
 // from the node to the receiver), G's columns at texels 1 + 3 j + c of asset node j; texel 0
 // holds (first / 65536, first % 65536, count) - a first no node reaches when the bounce is
 // diffuse or there is none.
+// Compiled in only when the tree has such nodes (ASSET_DIRECTIONAL, app/pbgi/gather.py): the
+// untaken test and its look-ups cost llvmpipe's gather 2.8x otherwise (demo close-up, 19 -> 55
+// ms for a room without them).
 layout(binding = TEX_ASSET_DIR) uniform sampler2D u_asset_dir;
 vec3 node_radiance(uint node, vec3 w, uint first, int width) {
     vec3 L = tnode_color(node);
+#ifndef ASSET_DIRECTIONAL
+    return L;
+#endif
     if (node < first) return L;
     int t = 1 + 3 * int(node - first);
     vec3 gx = texelFetch(u_asset_dir, ivec2(t % width, t / width), 0).rgb;
@@ -88,10 +94,13 @@ void main() {
 
     uint mm = mb_entries();
     vec3 sum = vec3(0.0);
-#ifndef RADIANCE_CUBEMAP
+#if !defined(RADIANCE_CUBEMAP) && defined(ASSET_DIRECTIONAL)
     vec2 first_halves = texelFetch(u_asset_dir, ivec2(0), 0).xy;
     uint asset_dir_first = (uint(first_halves.x) << 16) | uint(first_halves.y);
     int asset_dir_width = textureSize(u_asset_dir, 0).x;
+#else
+    uint asset_dir_first = 0xFFFFFFFFu;
+    int asset_dir_width = 1;
 #endif
 #ifdef LOBE_BUFFER
     bvec2 terms = lobe_terms(Q, u_glossy_below);

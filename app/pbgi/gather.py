@@ -34,10 +34,12 @@ class Gather:
         self._progs = {}
 
     def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False,
-              irradiance: bool = False, absent: tuple = ()):
-        key = (cubemap, frames, lobe, irradiance, tuple(absent))
+              irradiance: bool = False, absent: tuple = (), directional: bool = False):
+        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional)
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
+            if directional:
+                defines["ASSET_DIRECTIONAL"] = 1
             if frames:
                 defines["FRAME_NORMALS"] = 1
             if lobe:
@@ -66,8 +68,9 @@ class Gather:
         variant without their code, compiled once per feature set."""
         if irradiance and lobe is not None:
             raise ValueError("an irradiance gather has no lobe micro-buffers")
+        directional = env is None and bool(getattr(nodes, "has_directional", False))
         prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
-                          () if irradiance else tuple(absent))
+                          () if irradiance else tuple(absent), directional)
         if lobe is not None:
             if env is None:
                 lobe_buffers.bind()

@@ -59,13 +59,14 @@ class NodeTextures:
         node_radiance) reads texel 0 = (first / 65536, first % 65536, k) - two halves, exact in
         a float whatever the node count - and node first + j's columns at texels 1 + 3 j + c,
         rows of WIDTH. None: every node's radiance is its colour (texel 0 holds a first no node
-        reaches, 2^32 - 1), so the gather needs no variant for it."""
+        reaches, 2^32 - 1), and the gather runs its variant without the look-up."""
         import moderngl
         if self.directional is not None:
             self.directional.release()
         g = np.zeros((0, 3, 3), np.float32) if gradients is None else \
             np.asarray(gradients, np.float32).reshape(-1, 3, 3)
         texels = np.zeros((1 + 3 * len(g), 4), np.float32)
+        self.has_directional = bool(len(g))     # the gather's ASSET_DIRECTIONAL variant
         first = int(first) if len(g) else (1 << 32) - 1
         texels[0, :3] = (float(first >> 16), float(first & 0xFFFF), float(len(g)))
         texels[1:, :3] = g.transpose(0, 2, 1).reshape(-1, 3)   # texel 1 + 3 j + c: column c

@@ -11,5 +11,6 @@ BENCHES = {
     "tradeoff": "app.bench.tradeoff",
     "nearfield": "app.bench.nearfield",
     "profile": "app.bench.profile",
+    "pathtracer-ratio": "app.bench.pathtracer_ratio",
     "viewer": "app.bench.viewer",
 }

@@ -166,15 +166,19 @@ class Ref:
     spp: int
 
 
-def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory: Path) -> Ref:
+def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory: Path,
+              max_depth: int = MAX_DEPTH) -> Ref:
     """The path-traced reference of (room, material), from ``directory`` or rendered and stored
     there (EXR + a JSON of its noise floor; written to temporaries, then renamed). ``rl``: a
-    Relighter holding the scene (the sphere's pixel mask for the noise floor)."""
+    Relighter holding the scene (the sphere's pixel mask for the noise floor). ``max_depth``
+    other than MAX_DEPTH (3 for a non-convex asset's inter-reflection) is in the file name."""
     import json
 
     from app.bench import mitsuba_scene as ms
     from app.io.exr import read_exr, write_exr
     stem = f"{room}_{kind}_{camera.width}x{camera.height}_spp{spp}"
+    if max_depth != MAX_DEPTH:
+        stem += f"_depth{max_depth}"
     exr, meta = directory / f"{stem}.exr", directory / f"{stem}.json"
     if exr.is_file() and meta.is_file():
         m = json.loads(meta.read_text())
@@ -187,7 +191,7 @@ def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory
                                f"{e}") from None
     log.info("rendering the reference %s (%d spp)", stem, spp)
     sc = ms.build_scene(cloud, mesh, material(kind), camera, ms.square_side(cloud),
-                        max_depth=MAX_DEPTH)
+                        max_depth=max_depth)
     ref = ms.render_reference(sc, spp)
     from app.bench import image_metrics as im
     cover = _coverage(rl, camera)
@@ -201,7 +205,7 @@ def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory
     tmp.replace(exr)
     tmpj = meta.with_suffix(".tmp")
     tmpj.write_text(json.dumps({"noise": noise, "noise_4x4": noise4, "seconds": ref.seconds,
-                                "spp": spp, "max_depth": MAX_DEPTH}))
+                                "spp": spp, "max_depth": max_depth}))
     tmpj.replace(meta)
     return Ref(ref.image, noise, noise4, ref.seconds, spp)
 

@@ -51,7 +51,11 @@ uniform float u_leaf_radius;    // a leaf is a disc of at least this radius (the
 
 // Every micro-pixel's ray and solid angle (lobe_cell: two hashes and the warp's trigonometry)
 // once per receiver and dispatch, not once per node that covers it: a micro-pixel is ray cast
-// against ~10-30 accepted nodes. LOBE_CELLS = rings x sectors (app/pbgi/lobe.py).
+// against ~10-30 accepted nodes. LOBE_CELLS = rings x sectors: app/pbgi/lobe.py compiles one
+// program per size (the default here only lets the file build on its own).
+#ifndef LOBE_CELLS
+#define LOBE_CELLS 64
+#endif
 vec4 lobe_rays[LOBE_CELLS];
 
 void lobe_write(uint receiver, uint k, uint key, uint node) {

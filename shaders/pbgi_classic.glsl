@@ -107,7 +107,7 @@ void main() {
 
     // ---- rasterise the accepted nodes ----------------------------------------------------------
     uint k;
-    uint it = cut_raster(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
+    uint it = cut_raster(count, p, N, T, B, i, u_m, u_inv_cell_area, k);
     // A loop cut short by the driver leaves k < count: resume at the unfinished node.
     uint resume = k == count ? node : cut_list_node[k];
     uint flags = (resume >= end ? WALK_DONE : 0u) | (k == count ? 0u : WALK_CUT_SHORT);

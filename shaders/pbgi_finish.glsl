@@ -123,7 +123,7 @@ void main() {
     }
 
     uint k;
-    uint it = cut_raster(count, cost, p, N, T, B, i, u_m, u_inv_cell_area, k);
+    uint it = cut_raster(count, p, N, T, B, i, u_m, u_inv_cell_area, k);
     uint flags = 0u;
     if (k < count) {                         // the driver cut the loop short: redo this slice
         flags = WALK_CUT_SHORT;

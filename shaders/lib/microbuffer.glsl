@@ -27,8 +27,6 @@
 #include "lib/common.glsl"
 #include "gen/microbuffer.glsl"
 
-// (first further band, number of further bands) of grid pixel (x, y).
-uvec2 mb_pixel_bands(uint x, uint y) { MbBands b = mb_bands(x, y); return uvec2(b.first, b.count); }
 uint mb_extra_prefix(uint x, uint y) { return mb_bands(x, y).prefix; }
 MbEntry mb_load(uint receiver, uint k) { return mb_entry_at(ivec2(int(k), int(receiver))); }
 
@@ -143,9 +141,9 @@ uvec2 mb_cap_row(MbCap k, uint y, uvec4 rect, int m) {
     return uvec2(x0, x1);
 }
 
-// Walks the entries of a node's grid pixels one per step, for flat rasterisation loops (no
-// integer division, no inner loop): the cap's span of each row of the rectangle, each pixel's
-// bands in turn. At most mb_rect_entries(rect) steps (what the walks budget).
+// Walks the entries of a node's grid pixels one per step (no integer division): the cap's
+// span of each row of the rectangle, each pixel's bands in turn. At most mb_rect_entries(rect)
+// steps (what the walks budget).
 //   MbCursor c = mb_cursor(rect, cap, m);
 //   do { uint k = mb_cursor_entry(c, m); ...; } while (mb_cursor_next(c, rect, cap, m));
 // Bands: band b of a pixel split into n spans elevations [lo + b step, lo + (b + 1) step] (band 0

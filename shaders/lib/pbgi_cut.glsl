@@ -172,17 +172,16 @@ void cut_test_entry(MbNode nd, uint kk, vec3 T, vec3 B, vec3 N, uint receiver) {
 // uses (cut_node), so the spans hold every entry the test can hit.
 MbCap cut_cap(MbNode nd, vec3 T, vec3 B, vec3 N) { return mb_cap(nd.dv, nd.d2, nd.r2, T, B, N); }
 
-// Rasterise cut_list_node[0 .. count) (at most ``cost`` entry tests in all: mb_rect_entries of
-// each rectangle; the cap's row spans take fewer) into the micro-buffer of batch receiver
-// ``receiver``, node by node: the node's set-up (its record, its cap) runs once per node. A
-// flat loop over (node, entry) pairs kept SIMD lanes that rasterise different nodes busy, but
-// carried the set-up, masked, through nearly every iteration (some lane of 8 starts a node in
-// most of them); since the set-up includes the cap, the nested loops are 13% faster on the
-// demo close-up (Classic, M 16; the same micro-buffers). Returns the iterations done;
-// ``k_out`` = the first node not finished (count when all are done: anything less means the
-// driver cut the loop short).
-uint cut_raster(uint count, uint cost, vec3 p, vec3 N, vec3 T, vec3 B, uint receiver,
-                int m, float inv_cell_area, out uint k_out) {
+// Rasterise cut_list_node[0 .. count) (at most the budgeted mb_rect_entries of each rectangle;
+// the cap's row spans take fewer) into the micro-buffer of batch receiver ``receiver``, node by
+// node: the node's set-up (its record, its cap) runs once per node. A flat loop over (node,
+// entry) pairs would keep SIMD lanes that rasterise different nodes busy, but carries the
+// set-up, masked, through nearly every iteration (some lane of 8 starts a node in most of
+// them), and the cap makes that set-up dear. Returns the iterations done; ``k_out`` = the first
+// node not finished (count when all are done: anything less means the driver cut the loop
+// short).
+uint cut_raster(uint count, vec3 p, vec3 N, vec3 T, vec3 B, uint receiver, int m,
+                float inv_cell_area, out uint k_out) {
     uint it = 0u;
     uint k;
     for (k = 0u; k < count; ++k) {

@@ -114,6 +114,14 @@ def fit_directional(directions: np.ndarray, normals: np.ndarray, radiance: np.nd
     return c[:, 0, :].astype(np.float32), c[:, 1:, :].transpose(0, 2, 1).astype(np.float32)
 
 
+def _bounce_key(tree_key, bounces: int, albedo: np.ndarray, materials) -> tuple:
+    """What a bounce depends on: the tree, the bounce count, the surfels' albedo and, for the
+    glossy bounce, every material parameter (its lobe, not only its colour)."""
+    from app.pbgi.brdf import pack_params
+    return (tree_key, int(bounces), albedo.tobytes(),
+            tuple(pack_params(m).tobytes() for m in materials) if glossy(materials) else None)
+
+
 def _bytes(a) -> bytes | None:
     return None if a is None else np.ascontiguousarray(a).tobytes()
 
@@ -183,9 +191,7 @@ class AssetScene:
         fitted to what each sees (module docstring)."""
         albedo = surfel_albedo(surfels, mesh, materials)
         shiny = glossy(materials)
-        from app.pbgi.brdf import pack_params
-        key = (tree_key, int(bounces), albedo.tobytes(),
-               tuple(pack_params(m).tobytes() for m in materials) if shiny else None)
+        key = _bounce_key(tree_key, bounces, albedo, materials)
         if self._bounce is not None and self._bounce[0] == key:
             return self._bounce[1]
         rad = np.zeros((len(surfels), 3), np.float32)
@@ -242,14 +248,10 @@ class AssetScene:
         if self._tree is None or self._tree[0] != key or self._surfels is None \
                 or self._surfels[0] != (asset_version, count):
             return False
-        if self._bounce is not None and self._bounce[0][:3] == (
-                key, int(params.asset_bounces),
-                surfel_albedo(self._surfels[1], mesh, materials).tobytes()) and (
-                self._bounce[0][3] is None) == (not glossy(materials)):
-            if not glossy(materials):
-                return True
-            from app.pbgi.brdf import pack_params
-            return self._bounce[0][3] == tuple(pack_params(m).tobytes() for m in materials)
+        if self._bounce is not None and self._bounce[0] == _bounce_key(
+                key, params.asset_bounces, surfel_albedo(self._surfels[1], mesh, materials),
+                materials):
+            return True
         # one diffuse bounce whose first gather is kept: a material edit only rescales it
         return int(params.asset_bounces) == 0 or (
             int(params.asset_bounces) == 1 and not glossy(materials)

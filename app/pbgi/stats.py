@@ -116,7 +116,7 @@ class RenderStats:
     lobe_visited: float = 0.0         # BSH nodes a receiver's lobe walk visited, mean
     lobe_tests: float = 0.0           # lobe micro-pixel ray tests per receiver, mean
     asset_surfels: int = 0            # the asset's surfels in the tree (0: the room's alone)
-    asset_bounces: int = 0            # diffuse bounces they carry
+    asset_bounces: int = 0            # bounces they carry (diffuse, or glossy for a metal)
     ms_asset: float = 0.0             # building the asset's surfel tree and bounce when this
                                       # render did it (cached otherwise), outside ``ms``
     mb_asset: float = 0.0             # the joined tree's records and node textures

@@ -101,12 +101,18 @@ def sample_surfels(mesh, count: int, seed: int = 0) -> Surfels:
     return Surfels(pos, nrm.astype(np.float32), face, texture, total / count)
 
 
-def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
-    """The bounce albedo of every surfel for ``materials`` (one per mesh material, or one for
-    all): the render's base colours, textured where the mesh's own material has a texture."""
+def _per_mesh_material(materials, mesh) -> list:
+    """``materials`` one per mesh material (a single one stands for all)."""
     materials = list(materials)
     if len(materials) == 1 and len(mesh.materials) > 1:
         materials = materials * len(mesh.materials)
+    return materials
+
+
+def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
+    """The bounce albedo of every surfel for ``materials`` (one per mesh material, or one for
+    all): the render's base colours, textured where the mesh's own material has a texture."""
+    materials = _per_mesh_material(materials, mesh)
     mat = mesh.material_ids[surfels.face].astype(np.int64)
     out = np.zeros((len(surfels), 3), np.float32)
     for k, m in enumerate(materials[:len(mesh.materials)]):
@@ -120,8 +126,6 @@ def surfel_albedo(surfels: Surfels, mesh, materials) -> np.ndarray:
 def surfel_materials(surfels: Surfels, mesh, materials) -> tuple[list, np.ndarray]:
     """(materials, per-surfel row into them): ``materials`` one per mesh material, or one for
     all (as surfel_albedo reads them)."""
-    materials = list(materials)
-    if len(materials) == 1 and len(mesh.materials) > 1:
-        materials = materials * len(mesh.materials)
+    materials = _per_mesh_material(materials, mesh)
     index = np.clip(mesh.material_ids[surfels.face].astype(np.int64), 0, len(materials) - 1)
     return materials, index.astype(np.uint32)

@@ -111,15 +111,21 @@ def _ours(m: Model, amplitude: float) -> np.ndarray:
     return m.truth * (1 + amplitude * np.sin(np.arange(SIDE) / 3.0))[:, None, None]
 
 
-def test_the_solve_finds_the_spp_of_equal_error_beyond_the_reference():
-    """The model, our true error half the reference's noise: the solved spp (about 4x the
-    reference's) has our error, within the bootstrap interval, which resolves it."""
-    m = Model(3)
-    ref_spp = 1024
+def _sweep_and_fit(m, ref_spp: int = 1024):
+    """A reference of the model at ``ref_spp``, the sweep's error terms against it over the
+    whole image, and the noise fit: (ref_spp, ref, mask, sweep_terms, fit)."""
     ref = m.render(ref_spp)
     mask = np.ones((SIDE, SIDE), bool)
     sweep_terms = [P.error_terms(m.render(s), ref, mask) for s in SWEEP]
     fit = P.fit_noise(SWEEP, [math.sqrt(t.mean()) for t in sweep_terms], ref_spp)
+    return ref_spp, ref, mask, sweep_terms, fit
+
+
+def test_the_solve_finds_the_spp_of_equal_error_beyond_the_reference():
+    """The model, our true error half the reference's noise: the solved spp (about 4x the
+    reference's) has our error, within the bootstrap interval, which resolves it."""
+    m = Model(3)
+    ref_spp, ref, mask, sweep_terms, fit = _sweep_and_fit(m)
     ours = _ours(m, 0.055)
     target = im.relative_rmse(ours, m.truth)
     assert 0.4 < target / (A / math.sqrt(ref_spp)) < 0.6
@@ -137,11 +143,7 @@ def test_the_solve_finds_the_spp_of_equal_error_beyond_the_reference():
 def test_an_error_below_what_the_fit_resolves_gets_only_a_bound():
     """Our image exactly the truth: the corrected error is zero within the noise; no ratio."""
     m = Model(5)
-    ref_spp = 1024
-    ref = m.render(ref_spp)
-    mask = np.ones((SIDE, SIDE), bool)
-    sweep_terms = [P.error_terms(m.render(s), ref, mask) for s in SWEEP]
-    fit = P.fit_noise(SWEEP, [math.sqrt(t.mean()) for t in sweep_terms], ref_spp)
+    ref_spp, ref, mask, sweep_terms, fit = _sweep_and_fit(m)
     terms = P.error_terms(m.truth, ref, mask)
     interval = P.spp_interval(terms, sweep_terms, SWEEP, ref_spp)
     eq = P.equal_error(fit, math.sqrt(terms.mean()), 2.0, 0.01, interval)

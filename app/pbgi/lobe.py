@@ -112,24 +112,29 @@ LOBE_BLEND = 0.3      # lib/lobe.glsl's LOBE_BLEND: the lobe buffer takes the wh
                       # lobe up to (1 - LOBE_BLEND) x glossy_below (tests/pbgi/test_lobe_only.py)
 
 
-LOBE_ONLY_MIN_ROUGHNESS = 0.1   # smoother metals keep the full cosine micro-buffer (lobe_only)
+LOBE_ONLY_MIN_ROUGHNESS = 0.1   # smoother metals keep the full cosine micro-buffer
+                                # (lobe_only_receivers)
 
 
-def lobe_only(materials, glossy_below: float) -> bool:
-    """Is every material's light gathered from the lobe micro-buffers alone, up to a tail a
-    coarse cosine micro-buffer resolves? A metal (metallic 1, no metallic-roughness texture)
+def lobe_only_receivers(metallic, roughness, glossy_below: float) -> np.ndarray:
+    """Per receiver (its metallic and roughness as the G-buffer sampled them, textures applied):
+    is its light gathered from the lobe micro-buffers alone, up to a tail a coarse cosine
+    micro-buffer resolves? Those receivers get pbgi.lobe_only_microbuffer's M, the others the
+    full one, in the same image (app/pbgi/modebase.py: receiver groups). A metal (metallic 1)
     has no diffuse, sheen or subsurface lobe, and below (1 - LOBE_BLEND) glossy_below its whole
     specular lobe and any clearcoat are in the lobe buffer. The cosine micro-buffer then holds
     only the specular lobe's tail outside the lobe's domain (about 1% of its energy), so a
-    coarse one is enough (pbgi.lobe_only_microbuffer) - but not below roughness
-    LOBE_ONLY_MIN_ROUGHNESS, where that tail is a narrow ring just outside the domain that one
-    coarse micro-pixel's centroid samples or misses: white furnace, Classic, single pixels off
-    by 34% at roughness 0 - 0.02 and 13% at 0.05 with M 8 (8.6% and 1.6% at M 24), 1.6-3.6% at
-    0.1 - 0.3 for any M."""
+    coarse one is enough - but not below roughness LOBE_ONLY_MIN_ROUGHNESS, where that tail is a
+    narrow ring just outside the domain that one coarse micro-pixel's centroid samples or
+    misses: white furnace, Classic, single pixels off by 34% at roughness 0 - 0.02 and 13% at
+    0.05 with M 8 (8.6% and 1.6% at M 24), 1.6-3.6% at 0.1 - 0.3 for any M.
+
+    The rule is the opposite of "a rough receiver needs fewer micro-pixels": a rough receiver's
+    light is all in the cosine buffer, a glossy metal's nearly none of it."""
+    metallic = np.asarray(metallic, dtype=np.float64)
+    roughness = np.asarray(roughness, dtype=np.float64)
     full = float(glossy_below) * (1.0 - LOBE_BLEND)
-    return bool(materials) and all(
-        float(m.metallic) >= 1.0 and m.metallic_roughness_texture is None
-        and LOBE_ONLY_MIN_ROUGHNESS <= float(m.roughness) < full for m in materials)
+    return (metallic >= 1.0) & (roughness >= LOBE_ONLY_MIN_ROUGHNESS) & (roughness < full)
 
 
 def bytes_per_receiver(settings: LobeSettings | None) -> int:

@@ -92,10 +92,16 @@ class Frame:
     irradiance: bool = False          # gather E / pi (white Lambertian), not the material
     absent_features: tuple = ()       # BRDF features no material uses (gather.absent_features):
                                       # the gather's variant leaves their code out
+    groups: tuple = ()                # ((start, count, m), ...): consecutive runs of receivers
+                                      # with their own micro-buffer size (renderer: lobe-only
+                                      # receivers); empty = all ``count`` at ``m``
 
     @property
     def m(self) -> int:
         return int(self.params.microbuffer)
+
+    def receiver_groups(self) -> tuple:
+        return self.groups or ((0, self.count, self.m),)
 
 
 @dataclass
@@ -227,22 +233,59 @@ class MicroBufferMode(RenderMode):
         self.cut = cut
 
     def render(self, frame: Frame, stats: RenderStats) -> int:
+        """Every receiver group in turn (Frame.groups), each in batches at its own M. Only a
+        frame of one group and one batch leaves its cut in the held micro-buffers for the next
+        render to reuse."""
+        groups = frame.receiver_groups()
+        held = frame.microbuffers
+        reuse = len(groups) == 1 and held.key == frame.cut_key
+        batches: list[CutFigures] = []
+        extra = 0
+        t_cut = t_gather = 0.0
+        per = halvings = 0
+        for start, n, m in groups:
+            one = self._render_group(frame, stats, start, n, m, reuse, batches)
+            if one is None:            # the held cut did not fit one batch: walk after all
+                reuse = False
+                one = self._render_group(frame, stats, start, n, m, False, batches)
+            group_extra, per_g, halvings_g, tc, tg = one
+            extra = max(extra, group_extra)
+            per, halvings = max(per, per_g), halvings + halvings_g
+            t_cut, t_gather = t_cut + tc, t_gather + tg
+        if reuse:
+            stats.reused_microbuffers = True
+        else:
+            held.figures = CutSummary.of(batches)
+            held.key = (frame.cut_key if len(groups) == 1 and per >= frame.count
+                        and not halvings else None)
+            held.frames = batches[-1].frames
+        held.figures.apply(stats)
+        stats.ms_cut, stats.ms_gather = t_cut * 1e3, t_gather * 1e3
+        stats.batch_receivers, stats.tile_halvings = per, halvings
+        stats.mb_microbuffers = held.buffers.nbytes / MB
+        stats.mb_extra_bound = extra / MB
+        return held.buffers.nbytes + extra
+
+    def _render_group(self, frame: Frame, stats: RenderStats, start: int, n: int, m: int,
+                      reuse: bool, batches: list):
+        """Receivers start .. start + n - 1 at micro-buffer size m, batch by batch: cut, lobe
+        buffers, gather. Returns (extra bytes, batch size, halvings, cut s, gather s), or None
+        when ``reuse`` was asked but the group needs more than one batch."""
         ctx, cut, held = self.ctx, self.cut, frame.microbuffers
-        n, m = frame.count, frame.m
         state_per = int(cut.bytes_per_receiver(m))
         budget = frame.params.memory_budget_mb * MB
         reserve = int(cut.reserve_bytes(budget))
         mb_per = bytes_per_receiver(m) + lobe_bytes_per_receiver(frame.lobe)
         per = batch_size(m, max(budget - reserve, 0.0) * mb_per / (mb_per + state_per),
                          int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)), n)
-        reuse = per >= n and held.key == frame.cut_key
+        if reuse and per < n:
+            return None
         # the finder's share of the budget, from the first batch size (kept when halving)
         cut_budget = max(budget - mb_per * per, 0.0)
-        batches: list[CutFigures] = []
-        halvings, first = 0, 0
+        halvings, first, end = 0, start, start + n
         t_cut = t_gather = 0.0
-        while first < n:
-            count = min(per, n - first)
+        while first < end:
+            count = min(per, end - first)
             ctx.finish()
             tc = time.perf_counter()
             if not reuse:
@@ -270,7 +313,7 @@ class MicroBufferMode(RenderMode):
                 ctx.finish()
                 stats.ms_lobe += (time.perf_counter() - tl) * 1e3
                 stats.lobe_incomplete += lobe_figures["incomplete"]
-                share = count / max(n, 1)        # batch means -> means over all receivers
+                share = count / max(frame.count, 1)   # batch means -> means over all receivers
                 stats.lobe_visited += lobe_figures["visited"] * share
                 stats.lobe_tests += lobe_figures["tests"] * share
             tg = time.perf_counter()
@@ -284,19 +327,7 @@ class MicroBufferMode(RenderMode):
             t_cut += tl - tc
             stats.batches += 1
             first += count
-        if reuse:
-            stats.reused_microbuffers = True
-        else:
-            held.figures = CutSummary.of(batches)
-            held.key = frame.cut_key if per >= n else None
-            held.frames = batches[-1].frames
-        held.figures.apply(stats)
-        extra = reserve + state_per * per
-        stats.ms_cut, stats.ms_gather = t_cut * 1e3, t_gather * 1e3
-        stats.batch_receivers, stats.tile_halvings = per, halvings
-        stats.mb_microbuffers = held.buffers.nbytes / MB
-        stats.mb_extra_bound = extra / MB
-        return held.buffers.nbytes + extra
+        return reserve + state_per * per, per, halvings, t_cut, t_gather
 
     def release(self) -> None:
         self.cut.release()

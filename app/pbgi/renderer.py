@@ -36,7 +36,8 @@ from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact s
 from app.pbgi.gpu_layout import GATHER_OUTPUT, RECEIVER
 from app.pbgi.hierarchy import recolor
 from app.pbgi.microbuffer import MIN_SIZE, MicroBuffers, entries
-from app.pbgi.lobe import LobeBuffers, LobeSettings, lobe_only, needs_lobe, surface_radius
+from app.pbgi.lobe import (LobeBuffers, LobeSettings, lobe_only_receivers, needs_lobe,
+                           surface_radius)
 from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
 from app.pbgi.modes import create_mode
 from app.pbgi.nodetex import NodeTextures
@@ -369,11 +370,9 @@ class Relighter:
             raise ScanlightError(None, f"tile {tuple(tile)} is outside the {W}x{H} image")
         tile = (x0, y0, w, h)
         m = m_lobe = int(params.microbuffer)       # the lobe buffers follow the M asked for
-        lobe_only_m = int(params.lobe_only_microbuffer)
-        if (params.mode != "envmap" and params.glossy_below > 0.0 and 0 < lobe_only_m
-                and lobe_only(materials, params.glossy_below)):
-            m = min(m, max(lobe_only_m, MIN_SIZE))
-            params = replace(params, microbuffer=m)
+        small = max(int(params.lobe_only_microbuffer), MIN_SIZE)
+        coarse_m = (params.mode != "envmap" and params.glossy_below > 0.0
+                    and int(params.lobe_only_microbuffer) > 0 and small < m)
         ctx = self.ctx
         from app.pbgi.gather import absent_features
         from app.pbgi.gbuffer import material_table, pass_jitter
@@ -395,13 +394,26 @@ class Relighter:
         if pixels is not None:             # only these pixels' receivers (silhouette samples)
             rec = rec[np.asarray(pixels, bool).reshape(-1)[RECEIVER.view(rec)["pixel"]]]
         rec = rec[np.argsort(z_order(RECEIVER.view(rec)["pixel"], w), kind="stable")]
-        self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         n = len(rec)
+        groups, coarse_n = (), 0
+        if coarse_m and n:                 # lobe-only receivers: a coarse cosine micro-buffer
+            v = RECEIVER.view(rec)
+            coarse = lobe_only_receivers(v["metallic"], v["roughness"], params.glossy_below)
+            coarse_n = int(coarse.sum())
+            if coarse_n == n:              # one group: the whole frame at the small M
+                m = small
+                params = replace(params, microbuffer=m)
+            elif coarse_n:                 # two runs, each still in Z-order
+                rec = np.concatenate([rec[~coarse], rec[coarse]])
+                groups = ((0, n - coarse_n, m), (n - coarse_n, coarse_n, small))
+        self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         t1 = time.perf_counter()
         stats = RenderStats(mode=params.mode, microbuffer=m, width=w, height=h, tile=tile,
                             receivers=n, nodes=node_count,
                             bsh_mb=(self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
-                            micropixels=n * m * m, entries=n * entries(m),
+                            micropixels=sum(c * k * k for _, c, k in groups or ((0, n, m),)),
+                            entries=sum(c * entries(k) for _, c, k in groups or ((0, n, m),)),
+                            coarse_receivers=coarse_n, coarse_microbuffer=small if coarse_n else 0,
                             ms_gbuffer=(t1 - t0) * 1e3)
         if self.hdri is not None:
             stats.hdri = self.hdri.source or "(in memory)"
@@ -432,7 +444,8 @@ class Relighter:
                    tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, pass_jitter(pass_index),
                    tuple(id(mt.normal_texture) for mt in materials), scene_key,
-                   None if pixels is None else hash(np.asarray(pixels, bool).tobytes()))
+                   None if pixels is None else hash(np.asarray(pixels, bool).tobytes()),
+                   groups)
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
             lobe = LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index)
@@ -448,7 +461,7 @@ class Relighter:
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
                           leaf_radius=self.leaf_radius if lobe is not None else 0.0,
-                          absent_features=stats.absent_features)
+                          absent_features=stats.absent_features, groups=groups)
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes

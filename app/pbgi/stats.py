@@ -115,6 +115,8 @@ class RenderStats:
     lobe_incomplete: int = 0          # receivers whose lobe walk did not complete
     lobe_visited: float = 0.0         # BSH nodes a receiver's lobe walk visited, mean
     lobe_tests: float = 0.0           # lobe micro-pixel ray tests per receiver, mean
+    coarse_receivers: int = 0         # receivers whose light is all in the lobe buffers: their
+    coarse_microbuffer: int = 0       # cosine micro-buffer is this M (pbgi.lobe_only_microbuffer)
     asset_surfels: int = 0            # the asset's surfels in the tree (0: the room's alone)
     asset_bounces: int = 0            # bounces they carry (diffuse, or glossy for a metal)
     ms_asset: float = 0.0             # building the asset's surfel tree and bounce when this

@@ -1,5 +1,6 @@
-"""Frames whose materials are all glossy metals use a coarse cosine micro-buffer
-(pbgi.lobe_only_microbuffer, app/pbgi/lobe.py: lobe_only): their light is in the lobe buffers."""
+"""Receivers whose light is all in the lobe buffers (glossy metals) use a coarse cosine
+micro-buffer (pbgi.lobe_only_microbuffer, app/pbgi/lobe.py: lobe_only_receivers), in the same
+image as receivers of other materials at the full M."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 from app.material import Material
-from app.pbgi.lobe import LOBE_BLEND, lobe_only
+from app.pbgi.lobe import LOBE_BLEND, lobe_only_receivers
 from app.pbgi.renderer import RenderParams
 
 GOLD = dict(base_color=(1.0, 0.78, 0.34), metallic=1.0)
@@ -22,34 +23,28 @@ def test_blend_matches_the_shader():
     assert float(re.search(r"#define LOBE_BLEND ([0-9.]+)", text).group(1)) == LOBE_BLEND
 
 
-@pytest.mark.parametrize("materials,expected", [
-    ([Material(roughness=0.25, **GOLD)], True),
-    ([Material(roughness=0.0, **GOLD)], False),                      # a mirror's tail
-    ([Material(roughness=0.05, **GOLD)], False),
-    ([Material(roughness=0.1, **GOLD)], True),
-    ([Material(roughness=0.25, clearcoat=1.0, **GOLD)], True),       # clearcoat: lobe buffer
-    ([Material(roughness=0.34, **GOLD)], True),                      # below 0.7 x 0.5
-    ([Material(roughness=0.36, **GOLD)], False),                     # shared with the cosine
-    ([Material(roughness=0.25, base_color=(1, 1, 1), metallic=0.99)], False),   # some diffuse
-    ([Material(roughness=0.25, **GOLD), Material(roughness=0.8)], False),
-    ([], False),
+@pytest.mark.parametrize("metallic,roughness,expected", [
+    (1.0, 0.25, True),
+    (1.0, 0.0, False),                       # a mirror's tail
+    (1.0, 0.05, False),
+    (1.0, 0.1, True),
+    (1.0, 0.34, True),                       # below 0.7 x 0.5
+    (1.0, 0.36, False),                      # shared with the cosine buffer
+    (0.99, 0.25, False),                     # some diffuse (a metallic texture below 1, too)
+    (0.0, 0.25, False),
 ])
-def test_which_frames_are_lobe_only(materials, expected):
-    assert lobe_only(materials, 0.5) is expected
+def test_which_receivers_are_lobe_only(metallic, roughness, expected):
+    got = lobe_only_receivers(np.float32([metallic]), np.float32([roughness]), 0.5)
+    assert got.tolist() == [expected]
 
 
-def test_a_metallic_texture_could_lower_the_metallic_factor():
-    tex = np.ones((2, 2, 4), np.float32)
-    m = Material(roughness=0.2, metallic_roughness_texture=tex, **GOLD)
-    assert lobe_only([m], 0.5) is False
-
-
-def _render(r, mat, lobe_only_m):
+def _render(r, mat, lobe_only_m, mode="classic", size=32):
     from app.demo.room import default_views
-    cam = default_views(32, 32)["closeup"]
+    cam = default_views(size, size)["closeup"]
     r.forget_microbuffers()
-    return r.render(cam, [mat], RenderParams(mode="classic", microbuffer=16,
-                                             lobe_only_microbuffer=lobe_only_m))
+    mats = mat if isinstance(mat, list) else [mat]
+    return r.render(cam, mats, RenderParams(mode=mode, microbuffer=16,
+                                            lobe_only_microbuffer=lobe_only_m))
 
 
 def test_gold_renders_with_the_coarse_cosine_buffer_and_the_same_light(demo_relighter):
@@ -70,3 +65,47 @@ def test_gold_renders_with_the_coarse_cosine_buffer_and_the_same_light(demo_reli
     assert np.abs(a - b).mean() / a.mean() < 0.03
     plastic = _render(demo_relighter, Material(roughness=0.25, base_color=(0.8, 0.2, 0.2)), 8)
     assert plastic.stats.microbuffer == 16
+
+
+@pytest.fixture
+def two_material_sphere(demo_relighter):
+    """The demo sphere with its faces left of the centre given material 1."""
+    from dataclasses import replace
+    mesh = demo_relighter.mesh
+    centre = mesh.positions[mesh.indices].mean(axis=1)[:, 0]
+    ids = (centre < np.median(centre)).astype(np.uint32)
+    demo_relighter.set_asset(replace(mesh, material_ids=ids, materials=[Material()] * 2))
+    yield demo_relighter
+    demo_relighter.set_asset(mesh)
+
+
+@pytest.mark.parametrize("mode", ["classic", "hybrid"])
+def test_mixed_materials_give_each_receiver_its_own_microbuffer(two_material_sphere, mode):
+    """Plastic and gold 0.25 on one sphere: the gold receivers get the coarse cosine buffer (M 8),
+    the plastic ones keep M 16, in one image. Each half is what a frame of that material alone
+    gives: in Classic (a receiver's cut is its own) to float noise; in Hybrid (a block shares
+    its far field only between receivers of one group) within 1.5% on average."""
+    r = two_material_sphere
+    plastic = Material(roughness=0.25, base_color=(0.8, 0.2, 0.2))
+    gold = Material(roughness=0.25, **GOLD)
+    mixed = _render(r, [plastic, gold], 8, mode, 48)
+    rec = r.last_receivers                      # the mixed render's rows: plastic, then gold
+    all_gold = _render(r, [gold, gold], 8, mode, 48)
+    all_plastic = _render(r, [plastic, plastic], 8, mode, 48)
+    st = mixed.stats
+    n_gold = all_gold.stats.receivers
+    assert all_gold.stats.microbuffer == 8 and all_plastic.stats.microbuffer == 16
+    assert st.microbuffer == 16 and st.coarse_microbuffer == 8 and st.completed
+    assert 0.3 * st.receivers < st.coarse_receivers < 0.7 * st.receivers
+    assert st.micropixels == (st.receivers - st.coarse_receivers) * 256 + st.coarse_receivers * 64
+    assert n_gold == st.receivers
+    from app.pbgi.gpu_layout import RECEIVER
+    assert (RECEIVER.view(rec)["metallic"][-st.coarse_receivers:] == 1.0).all()
+    cover = mixed.image[..., 3] > 0.5
+    gold_px = np.zeros(cover.shape, bool)
+    gold_px.reshape(-1)[RECEIVER.view(rec)["pixel"][-st.coarse_receivers:]] = True
+    tol = 1e-4 if mode == "classic" else 0.015
+    for part, alone in ((gold_px, all_gold), (cover & ~gold_px, all_plastic)):
+        a, b = alone.image[..., :3][part], mixed.image[..., :3][part]
+        assert np.isfinite(b).all() and part.sum() > 50
+        assert np.abs(a - b).mean() / a.mean() < tol, mode

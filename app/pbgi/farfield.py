@@ -7,7 +7,7 @@ the *result* of the walk between neighbours, and the part of the scene where tha
 a tolerance is the far field:
 
 * receivers are grouped into aligned square blocks of the pixel grid (2x2 .. 2^L x 2^L, L =
-  ``max_level``; in the renderer's Z-order a block is a run of consecutive receivers). A block is
+  ``max_level``), the grid shifted by a per-pass offset (grid_offset; below). A block is
   usable when its receivers' normals lie within ``max_cone`` of their mean; each receiver takes
   the coarsest usable block above it (none: it walks alone, exactly as in Classic);
 * the block's ball: centre = the mean of its receivers' positions, D = rho / tol with rho the
@@ -35,6 +35,46 @@ into micro-pixels is then the same over a block instead of varying pixel to pixe
 against Classic at M = 32, Hybrid at M = 16 is as close as Classic at M = 16
 (tests/pbgi/test_pbgi_farfield.py). eps = 0 turns the sharing off (app/pbgi/hybrid.py).
 
+Block steps (issue 12). The error of that quantisation is shared too: the same over a block, it
+jumps at the block's edge - 4x4 and 8x8 squares on a diffuse sphere, which no single pass can
+avoid while the far field is rasterised once per block at M (fixing it within a frame needs
+each receiver's own quantisation of the bright nodes, i.e. work per receiver). What pays:
+each pass moves the block grid by a pseudo-random (dx, dy) in [0, 2^L)^2 (grid_offset, seeded
+by the pass's jittered first receiver), so the mean of passes (the viewer's idle passes,
+``render --passes``) has its edges in different places and the steps average away; the grid
+no longer follows the Z-order, so a block is any set of receivers and the merge of a chunk
+dispatches over the range its blocks span. Free: no extra walk. Measured on the demo close-up
+(96 x 96, diffuse 0.6, llvmpipe; app/bench/image_metrics.py: block_steps = mean adjacent-pixel
+difference across / inside the blocks of the render's own grid, in % of the mean radiance;
+error against Classic at M = 32 with as many passes):
+
+====================================  ======  ==================  =====  ===========
+variant (M = 16)                      passes  across / inside     ratio  rmse / 4x4
+====================================  ======  ==================  =====  ===========
+Classic                               1       3.95 / 3.58         1.10   7.8 / 4.4%
+Hybrid, grid aligned (before)         1       5.76 / 2.26         2.55   7.4 / 6.6%
+Hybrid, grid offset                   1       6.59 / 2.23         2.96   8.3 / 6.7%
+Classic                               4       3.36 / 2.94         1.14   6.9 / 4.2%
+Hybrid, grid aligned (before)         4       5.41 / 2.10         2.57   6.4 / 6.0%
+Hybrid, grid offset                   4       2.47 / 2.34         1.06   4.7 / 3.3%
+====================================  ======  ==================  =====  ===========
+
+The offsets are random, so the mean of few passes varies: over 8 sets of 4 offsets at 64 x 64
+the worst ratio over every phase of the 4 x 4 grid was 1.2-1.55 (aligned 1.9, Classic 1.2) and
+the 4x4-pooled error 2.8-4.3% (aligned 5.8%, Classic 3.0%); at 96 x 96 2 passes give 1.8, 8
+passes 1.3. Frame time unchanged (11 interleaved frames: median 302 ms vs 304 ms aligned).
+Tried and dropped: tilting each block's frame by a random angle up to one micro-pixel per pass
+(a stand-in for a random azimuth, which the gather's frame - orthonormal_basis of the normal -
+cannot express): blocks become independent, one pass gets worse (ratio 2.86), 4 passes 1.84;
+with the offset no better than the offset alone. Looking the block buffer up through each
+receiver's own frame instead of copying it: a second quantisation on top (ratio 4.8, error
+8.9%). Leaving the far nodes brighter than 4x the scene's mean to each receiver (drawn in its
+own frame): ratio 1.23, but inside differences 5.2%, error 11.5% and the frame 75% slower.
+Glossy (the lobe buffer is never shared, app/pbgi/lobe.py): a plastic at roughness 0.3 keeps
+the steps of its diffuse part, ratio 1.46 in one pass, and with 4 passes 1.19 (aligned 1.63)
+and a 4x4-pooled error of 3.5% (aligned 5.1%, Classic 3.5%); a gold metal at roughness 0.3
+renders as in Classic (no step).
+
 Memory: the block micro-buffers (one row of entries(M) texels per block) are most of the extra
 memory; blocks are walked in chunks of at most MAX_CHUNK (fewer when the budget is small), so it
 stays bounded whatever the number of blocks.
@@ -43,6 +83,7 @@ stays bounded whatever the number of blocks.
 from __future__ import annotations
 
 import time
+import zlib
 
 import numpy as np
 
@@ -76,28 +117,34 @@ def micro_pixel_angle(m: int) -> float:
 
 def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray, width: int,
                   m: int, tolerance: float, max_level: int = DEFAULT_MAX_LEVEL,
-                  max_cone: float = DEFAULT_MAX_CONE, min_block: int = MIN_BLOCK) -> dict:
+                  max_cone: float = DEFAULT_MAX_CONE, min_block: int = MIN_BLOCK,
+                  offset=(0, 0)) -> dict:
     """Per receiver, the coarsest usable block (see the module docstring).
 
+    ``offset`` (dx, dy) >= 0 shifts the block grid: the blocks are the aligned squares of pixel
+    (x + dx, y + dy); with an offset a block is no longer a run of the Z-order, and blocks are
+    numbered in the order of their first receiver.
     Returns block_of (n,) uint32 (NONE: walks alone), and per block: centre (B, 3), axis (B, 3),
-    radius D of its ball (B,), level (B,), size (B,) receivers, first (B,) receiver.
+    radius D of its ball (B,), level (B,), size (B,) receivers, first (B,) and last (B,)
+    receiver.
     """
     n = len(pixels)
     block_of = np.full(n, NONE, np.uint32)
     empty = {"block_of": block_of, "centre": np.zeros((0, 3)), "axis": np.zeros((0, 3)),
              "ball": np.zeros(0), "level": np.zeros(0, np.int64), "size": np.zeros(0, np.int64),
-             "first": np.zeros(0, np.int64)}
+             "first": np.zeros(0, np.int64), "last": np.zeros(0, np.int64)}
     if n == 0 or tolerance <= 0 or max_level < 1:
         return empty
     tol = tolerance * micro_pixel_angle(m)
     px = np.asarray(pixels, np.int64)
-    x, y = px % width, px // width
+    x, y = px % width + int(offset[0]), px // width + int(offset[1])
+    stride = width + int(offset[0]) + 1
     p = np.asarray(positions, np.float64)
     nrm = np.asarray(normals, np.float64)
     chosen_level = np.zeros(n, np.int64)
     chosen_key = np.full(n, -1, np.int64)
     for level in range(1, max_level + 1):
-        key = (y >> level) * (width + 1) + (x >> level)
+        key = (y >> level) * stride + (x >> level)
         uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
         k = len(uniq)
         a = np.stack([np.bincount(inv, nrm[:, j], k) for j in range(3)], 1)
@@ -130,10 +177,23 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     np.maximum.at(rho, bid, np.linalg.norm(p[idx] - c[bid], axis=1))
     first = np.full(nb, n, np.int64)
     np.minimum.at(first, bid, idx)
+    last = np.zeros(nb, np.int64)
+    np.maximum.at(last, bid, idx)
     level = np.zeros(nb, np.int64)
     level[bid] = chosen_level[idx]
     return {"block_of": block_of, "centre": c, "axis": a, "ball": np.maximum(rho, 1e-9) / tol,
-            "level": level, "size": cnt, "first": first}
+            "level": level, "size": cnt, "first": first, "last": last}
+
+
+def grid_offset(receivers, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[int, int]:
+    """The render's block-grid offset (dx, dy), each in [0, 2^max_level): pseudo-random, the
+    same for every batch of a render (all batches see the same first receiver) and new with
+    every pass, whose sub-pixel jitter (app/pbgi/gbuffer.py: pass_jitter) moves the tile's
+    first receiver record that seeds it. The mean of passes then has its block edges in
+    different places, and averages the steps away."""
+    rng = np.random.default_rng(zlib.crc32(receivers.read(size=RECEIVER.nbytes, offset=0)))
+    dx, dy = rng.integers(0, 1 << int(max_level), 2)
+    return int(dx), int(dy)
 
 
 class FarFieldShare(CutFinder):
@@ -155,6 +215,9 @@ class FarFieldShare(CutFinder):
         self.near = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 2})
         self.merge = load_compute(ctx, "pbgi_share_merge.glsl")
         self.block_mb = MicroBuffers(ctx)
+        self.grid_offset = True       # the block grid moved per pass (grid_offset()); False:
+                                      # aligned to the image (tests, measurements)
+        self.offset = (0, 0)          # the last batch's
         self._bufs = []
         self.frames = None            # per batch receiver: its micro-buffer's frame normal
 
@@ -172,8 +235,9 @@ class FarFieldShare(CutFinder):
         return b
 
     def _merge(self, mb, block_buf, r0: int, r1: int, b0: int, b1: int, clear: bool = False):
-        """Receivers [r0, r1) of the batch: copy blocks [b0, b1)'s buffers into theirs, or
-        (``clear``) empty the rows of those without a block."""
+        """Receivers [r0, r1) of the batch: copy blocks [b0, b1)'s buffers into theirs (the
+        shader skips receivers of other blocks), or (``clear``) empty the rows of those without
+        a block."""
         block_buf.bind_to_storage_buffer(SSBO.BLOCK_OF)
         mb.bind()
         if self.block_mb.image is not None:
@@ -196,8 +260,9 @@ class FarFieldShare(CutFinder):
         t0 = time.perf_counter()
         rec = RECEIVER.view(receivers.read(size=RECEIVER.nbytes * count,
                                            offset=RECEIVER.nbytes * first))
+        self.offset = grid_offset(receivers, self.max_level) if self.grid_offset else (0, 0)
         blocks = choose_blocks(rec["pixel"], rec["position"], rec["normal"], width, m,
-                               self.tolerance, self.max_level, self.max_cone)
+                               self.tolerance, self.max_level, self.max_cone, offset=self.offset)
         nb = len(blocks["ball"])
         block_of = blocks["block_of"]
         t1 = time.perf_counter()
@@ -220,7 +285,6 @@ class FarFieldShare(CutFinder):
                 balls["center"] = blocks["centre"]
                 balls["ball"] = blocks["ball"]
                 balls["frame"] = blocks["axis"]
-                ends = np.r_[blocks["first"][1:], count]
                 for b0 in range(0, nb, cap):
                     b1 = min(nb, b0 + cap)
                     chunks += 1
@@ -232,8 +296,8 @@ class FarFieldShare(CutFinder):
                     far_done[b0:b1] = res.done
                     rounds += res.rounds
                     # copy the chunk's block buffers into its receivers' micro-buffers
-                    self._merge(mb, block_buf, int(blocks["first"][b0]), int(ends[b1 - 1]),
-                                b0, b1)
+                    self._merge(mb, block_buf, int(blocks["first"][b0:b1].min()),
+                                int(blocks["last"][b0:b1].max()) + 1, b0, b1)
                     peak_bytes = max(peak_bytes, self.block_mb.nbytes)
             t2 = time.perf_counter()
             near_balls = SHARE_ROW.zeros(count)

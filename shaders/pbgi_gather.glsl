@@ -33,6 +33,7 @@
 #include "lib/microbuffer.glsl"
 #ifdef LOBE_BUFFER
 #include "lib/lobe.glsl"
+#include "lib/lobe_size.glsl"
 uniform uint u_rings;
 uniform uint u_sectors;
 uniform uint u_pass;
@@ -105,7 +106,8 @@ void main() {
 #ifdef LOBE_BUFFER
     bvec2 terms = lobe_terms(Q, u_glossy_below);
     bool lobed = any(terms) && Q.n_dot_v > 0.0;
-    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, u_rings, u_sectors);
+    uvec2 size = lobe_size(Q, terms, u_glossy_below, u_rings, u_sectors);
+    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, size.x, size.y);
     float spec_share = lobe_spec_share(Q, u_glossy_below);
 #endif
     uint k;
@@ -146,7 +148,7 @@ void main() {
     bool complete = k == mm;
 #ifdef LOBE_BUFFER
     if (lobed) {
-        uint cells = u_rings * u_sectors;
+        uint cells = F.rings * F.sectors;
         for (k = 0u; k < cells; ++k) {
             vec3 w;
             float omega;

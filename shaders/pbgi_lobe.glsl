@@ -19,6 +19,7 @@
 #include "lib/bsh_textures.glsl"
 #include "lib/microbuffer.glsl"
 #include "lib/lobe.glsl"
+#include "lib/lobe_size.glsl"
 #include "gen/receivers.glsl"
 #include "gen/materials.glsl"
 #include "gen/walk_state.glsl"
@@ -80,8 +81,11 @@ void main() {
         state[i] = ClassicState(end, st.visited, st.flags | WALK_DONE, st.tests);
         return;
     }
-    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, u_rings, u_sectors);
+    uvec2 size = lobe_size(Q, terms, u_glossy_below, u_rings, u_sectors);
+    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, size.x, size.y);
+    uint cells_used = size.x * size.y;
     for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {
+        if (c == cells_used) break;
         vec3 L;
         float omega;
         lobe_cell(F, c, L, omega);
@@ -134,7 +138,7 @@ void main() {
             }
         } else if (leaf) {                                 // receiver inside a leaf
             accept = true;
-            rect = (u_rings - 1u) << 8u | (u_sectors << 24u);
+            rect = (F.rings - 1u) << 8u | (F.sectors << 24u);
         }
         if (accept) {
             uint c = lobe_rect_cells(rect);

@@ -63,11 +63,14 @@ class LobeSettings:
 
     @staticmethod
     def for_microbuffer(m: int, glossy_below: float, pass_index: int = 0) -> "LobeSettings":
-        """LOBE_SIDE_FRACTION x M rings and sectors. The warp already puts every micro-pixel
-        inside the lobe, so fewer are needed than the cosine buffer's M x M, and the lobe walk's
-        work grows with them: against Mitsuba (apartment room, M = 24, Hybrid) 12 x 12 was
-        within 0.6 points of 16 x 16 in pooled error (metal r = 0, 0.1, 0.3; dielectric 0.3)
-        at 60% of the lobe walk's time, and 16 x 16 within 1 point of 24 x 24 at half of it."""
+        """LOBE_SIDE_FRACTION x M rings and sectors (at least LOBE_MIN_SIDE): what a clearcoat's
+        two lobes use; shaders/lib/lobe_size.glsl gives a receiver with one lobe 2/3 of each
+        side and one whose lobe is a small share of its light (a dielectric) fewer still. The
+        warp already puts every micro-pixel inside the lobe, so fewer are needed than the cosine
+        buffer's M x M, and the lobe walk's work grows with them: against Mitsuba (apartment
+        room, M = 24, Hybrid) 12 x 12 was within 0.6 points of 16 x 16 in pooled error (metal
+        r = 0, 0.1, 0.3; dielectric 0.3) at 60% of the lobe walk's time, and 16 x 16 within 1
+        point of 24 x 24 at half of it."""
         side = max(LOBE_MIN_SIDE, int(round(LOBE_SIDE_FRACTION * m)))
         return LobeSettings(side, side, float(glossy_below), int(pass_index))
 

@@ -159,5 +159,7 @@ def test_a_mirror_sees_a_closed_room(sweep):
     rl, cam = sweep
     res = rl.render(cam, [glossy.material("metal", 0.0)], RenderParams(mode="classic"))
     cells = rl.lobe_buffers.read(res.stats.receivers)[:, :, 1]
-    assert res.stats.receivers > 3000
-    assert (cells != MB_EMPTY).all(), (cells == MB_EMPTY).any(1).sum()
+    assert res.stats.receivers > 3000 and cells.shape[1] == 12 * 12    # M 24: M / 2 a side
+    used = 8 * 8                # one lobe takes 2/3 of each side (shaders/lib/lobe_size.glsl)
+    assert (cells[:, :used] != MB_EMPTY).all(), (cells[:, :used] == MB_EMPTY).any(1).sum()
+    assert (cells[:, used:] == MB_EMPTY).all()

@@ -92,6 +92,7 @@ class Frame:
     irradiance: bool = False          # gather E / pi (white Lambertian), not the material
     absent_features: tuple = ()       # BRDF features no material uses (gather.absent_features):
                                       # the gather's variant leaves their code out
+    pass_index: int = 0               # the render's pass (Hybrid moves its block grid per pass)
     groups: tuple = ()                # ((start, count, m), ...): consecutive runs of receivers
                                       # with their own micro-buffer size (renderer: lobe-only
                                       # receivers); empty = all ``count`` at ``m``
@@ -117,6 +118,7 @@ class Batch:
     cell_size: float
     width: int = 1                    # tile width (the pixel index of a receiver is row-major)
     budget_bytes: float = 1 << 30     # what the finder's own buffers may take
+    pass_index: int = 0               # the render's pass
 
 
 @dataclass
@@ -294,7 +296,8 @@ class MicroBufferMode(RenderMode):
                     held.buffers.prepare(m, per, 0 if cut.clears_microbuffers else count)
                     batches.append(cut.fill(Batch(
                         held.buffers, frame.receivers, first, count, m, frame.nodes,
-                        frame.cell_size, width=frame.tile[2], budget_bytes=cut_budget)))
+                        frame.cell_size, width=frame.tile[2], budget_bytes=cut_budget,
+                        pass_index=frame.pass_index)))
                 except REFUSED as exc:
                     if per <= 1:
                         raise ScanlightError(None, f"out of GPU memory even for one receiver "

@@ -461,7 +461,8 @@ class Relighter:
                           gather=self.gather, microbuffers=self._held, cut_key=cut_key,
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
                           leaf_radius=self.leaf_radius if lobe is not None else 0.0,
-                          absent_features=stats.absent_features, groups=groups)
+                          absent_features=stats.absent_features, groups=groups,
+                          pass_index=int(pass_index))
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes

@@ -63,7 +63,9 @@ def test_blocks_are_aligned_z_runs_with_narrow_cones_and_parallax_balls():
 def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     """Constant radiance all around: a node lost between the far walk of a block and the near
     walks of its receivers would leave a dark hole. Per pixel, Hybrid with sharing stays within
-    3% of Classic (measured 2.1%: entries the receiver's horizon cuts), and the mean of
+    4.5% of Classic (entries the receiver's horizon cuts; the block grid moves per pass, and over
+    9 grid offsets the worst pixel measured 1.8-3.7%, square blocks without the dither 1.8-5.4%;
+    a lost node would be a hole of its whole solid angle), and the mean of
     Hybrid / (L x the BRDF's albedo, numpy) is within 0.5% of 1 (the horizon sliver a block's
     frame misses is ~ (cone limit)^2 / 4: 0.25%). Most receivers do share."""
     from tests.support.scenes import albedo_of_cos as _albedo_of_cos, view_cos as _view_cos  # noqa: F401
@@ -77,7 +79,7 @@ def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     assert s.completed and s.share.share_receivers > 0.7 * s.receivers
     cover = base.image[..., 3] > 0
     got, want = res.image[..., :3][cover], base.image[..., :3][cover]
-    assert np.abs(got / want - 1).max() < 0.03
+    assert np.abs(got / want - 1).max() < 0.045
     pix, cos_v = _view_cos(furnace, cam, mat)
     expect = _albedo_of_cos(brdf.pack_params(mat), cos_v)
     assert abs((res.image.reshape(-1, 4)[pix, 0] / expect).mean() - 1) < 0.005
@@ -209,7 +211,7 @@ def test_passes_move_the_block_grid_and_average_the_block_steps_away(demo_religh
     """Hybrid at M = 16 on the demo close-up, 64 x 64. A block quantises a bright far node into
     micro-pixels once for all its receivers: the error is the same over the block and jumps at
     its edge (app/bench/image_metrics.py: block_steps). Every pass moves the block grid
-    (farfield.grid_offset, seeded by the pass's sub-pixel jitter), so the mean of 4 passes (the
+    (farfield.grid_offset: the pass's point of the R2 sequence), so the mean of 4 passes (the
     viewer's idle passes) has no step that stays on one grid: over every phase of the 4 x 4
     grid (the blocks are mostly 4 x 4 at this size), adjacent-pixel differences across a
     boundary stay below 1.7x those inside (today's aligned grid: 1.9x; Classic M = 16: 1.2x;
@@ -237,3 +239,36 @@ def test_passes_move_the_block_grid_and_average_the_block_steps_away(demo_religh
     pooled = relative_rmse(mean, ref.image, mask, pool=4)
     assert worst < 1.7
     assert pooled < 0.05
+
+
+def test_one_pass_has_weaker_block_steps(demo_relighter):
+    """Hybrid at M = 16 on the demo close-up, 96 x 96, one pass (the grid aligned). Receivers
+    near a block's edge may join the neighbouring block (farfield.DITHER), so a block's edge is
+    a ragged band: adjacent-pixel differences across the block grid are below 1.8x those inside
+    (measured 1.48x; square blocks 2.55x, Classic M = 16 1.10x), and the 4x4-pooled error
+    against Classic at M = 32 is Classic M = 16's within 1.5 points (measured 5.2% against
+    4.4%; square blocks 6.6%)."""
+    from app.bench.image_metrics import block_steps, relative_rmse
+    from app.demo.room import default_views
+    r = demo_relighter
+    cam = default_views(96, 96)["closeup"]
+    mat = S.diffuse(0.6)
+    ref = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=32)).image
+    mask = ref[..., 3] > 0.999
+    classic = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=16)).image
+    p = RenderParams(mode="hybrid", microbuffer=16)
+    finder = r.mode_for(p).cut
+    got = {}
+    try:
+        for dither in (True, False):
+            finder.dither = dither
+            r.forget_microbuffers()
+            res = r.render(cam, [mat], p)
+            assert res.stats.completed
+            got[dither] = (block_steps(res.image, mask, 8, finder.offset)["ratio"],
+                           relative_rmse(res.image, ref, mask, pool=4))
+    finally:
+        finder.dither = True
+    assert got[True][0] < 1.8
+    assert got[False][0] > 2.2                     # the square blocks this test guards against
+    assert got[True][1] < relative_rmse(classic, ref, mask, pool=4) + 0.015

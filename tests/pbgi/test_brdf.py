@@ -13,6 +13,7 @@ from app.material import SCALAR_NAMES, Material
 from app.pbgi import brdf as B
 from app.render.programs import shaders_dir
 from tests.support import TEST_SHADERS
+from tests.support.compute import run_ssbo
 
 EPS32 = 2.0 ** -24  # float32 unit roundoff
 EZ, EX, EY = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
@@ -77,16 +78,9 @@ def gl_eval(ctx):
         n = len(P)
         dirs = np.zeros((n, 5, 4), np.float32)
         dirs[:, :, :3] = np.stack([L, V, N, X, Y], 1)
-        bufs = [ctx.buffer(np.ascontiguousarray(P, np.float32).tobytes()),
-                ctx.buffer(dirs.tobytes()), ctx.buffer(reserve=n * 32)]
-        for i, b in enumerate(bufs):
-            b.bind_to_storage_buffer(i)
-        prog["u_count"].value = n
-        prog["u_mode"].value = mode
-        prog.run((n + 63) // 64)
-        out = np.frombuffer(bufs[2].read(), np.float32).reshape(n, 2, 4).copy()
-        for b in bufs:
-            b.release()
+        raw = run_ssbo(ctx, prog, [np.ascontiguousarray(P, np.float32), dirs], n * 32,
+                       (n + 63) // 64, u_count=n, u_mode=mode)
+        out = np.frombuffer(raw, np.float32).reshape(n, 2, 4).copy()
         assert np.all(out[:, :, 3] == 1.0), "some invocations did not complete"
         return out
 

@@ -14,6 +14,7 @@ from app.material import Material
 from app.pbgi import brdf
 from app.pbgi.renderer import RenderParams
 from tests.support import scenes as S
+from tests.support.compute import run_ssbo
 
 CAM = S.look((0.0, 0.2, 1.6), (0.0, 0.0, 0.0), 24, 45)
 
@@ -93,16 +94,9 @@ def rect_check(ctx):
 
     def run(C, nodes, samples: int = 5, shrink: float = 0.2):
         n = len(nodes)
-        bufs = [ctx.buffer(C.tobytes()), ctx.buffer(nodes.tobytes()), ctx.buffer(reserve=n * 32)]
-        for i, buf in enumerate(bufs):
-            buf.bind_to_storage_buffer(i)
-        prog["u_count"].value = n
-        prog["u_samples"].value = samples
-        prog["u_shrink"].value = shrink
-        prog.run((n + 15) // 16)
-        out = np.frombuffer(bufs[2].read(), np.uint32).reshape(n, 2, 4).copy()
-        for buf in bufs:
-            buf.release()
+        raw = run_ssbo(ctx, prog, [C, nodes], n * 32, (n + 15) // 16, u_count=n,
+                       u_samples=samples, u_shrink=shrink)
+        out = np.frombuffer(raw, np.uint32).reshape(n, 2, 4).copy()
         assert np.all(out[:, 1, 3] == 1), "some invocations did not complete"
         rect, hits, miss, miss_shrunk = out[:, 0].T
         return rect, hits, miss, miss_shrunk, out[:, 1, 0]

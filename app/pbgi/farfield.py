@@ -67,7 +67,8 @@ Hybrid, grid aligned (before)         4       5.41 / 2.10         2.57   6.4 / 6
 Hybrid, grid offset                   4       2.47 / 2.34         1.06   4.7 / 3.3%
 ====================================  ======  ==================  =====  ===========
 
-The offsets are random, so the mean of few passes varies: over 8 sets of 4 offsets at 64 x 64
+(The helper that built it drew the offsets at random; they are now the R2 sequence, pass 0
+aligned.) With random offsets the mean of few passes varied: over 8 sets of 4 at 64 x 64
 the worst ratio over every phase of the 4 x 4 grid was 1.2-1.55 (aligned 1.9, Classic 1.2) and
 the 4x4-pooled error 2.8-4.3% (aligned 5.8%, Classic 3.0%); at 96 x 96 2 passes give 1.8, 8
 passes 1.3. Frame time unchanged (11 interleaved frames: median 302 ms vs 304 ms aligned).
@@ -132,6 +133,15 @@ DITHER = {2: 2, 3: 2}
 GUEST_REACH = 3.0
 
 
+def _sum3(inv: np.ndarray, v: np.ndarray, k: int) -> np.ndarray:
+    """Per group 0 .. k-1 of ``inv``, the sum of the rows of v (n, 3)."""
+    return np.stack([np.bincount(inv, v[:, j], k) for j in range(3)], 1)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)
+
+
 def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray, width: int,
                   m: int, tolerance: float, max_level: int = DEFAULT_MAX_LEVEL,
                   max_cone: float = DEFAULT_MAX_CONE, min_block: int = MIN_BLOCK,
@@ -175,8 +185,7 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
         key = (y >> level) * stride + (x >> level)
         uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
         k = len(uniq)
-        a = np.stack([np.bincount(inv, nrm[:, j], k) for j in range(3)], 1)
-        a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-30)
+        a = _unit(_sum3(inv, nrm, k))
         cos = np.einsum("ij,ij->i", nrm, a[inv])
         half = np.zeros(k)
         np.maximum.at(half, inv, np.arccos(np.clip(cos, -1.0, 1.0)))
@@ -196,10 +205,8 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
         dk = (yl >> level) * stride + (xl >> level)
         keys, kinv = np.unique(chosen_key[at], return_inverse=True)
         nk = len(keys)
-        ax = np.stack([np.bincount(kinv, nrm[at, j], nk) for j in range(3)], 1)
-        ax /= np.maximum(np.linalg.norm(ax, axis=1, keepdims=True), 1e-30)
-        ce = np.stack([np.bincount(kinv, p[at, j], nk) for j in range(3)], 1)
-        ce /= np.bincount(kinv, minlength=nk)[:, None]
+        ax = _unit(_sum3(kinv, nrm[at], nk))
+        ce = _sum3(kinv, p[at], nk) / np.bincount(kinv, minlength=nk)[:, None]
         rk = np.zeros(nk)
         np.maximum.at(rk, kinv, np.linalg.norm(p[at] - ce[kinv], axis=1))
         slot = np.minimum(np.searchsorted(keys, dk), nk - 1)
@@ -211,7 +218,7 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     shared = chosen_key >= 0
     if not shared.any():
         return empty
-    # blocks in receiver order (Z-order: each block is a run of consecutive receivers)
+    # blocks numbered in the order of their first receiver
     code = chosen_level * (1 << 40) + chosen_key
     idx = np.flatnonzero(shared)
     _, first_pos, inv = np.unique(code[idx], return_index=True, return_inverse=True)
@@ -222,9 +229,8 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     nb = len(order)
     block_of[idx] = bid.astype(np.uint32)
     cnt = np.bincount(bid, minlength=nb)
-    c = np.stack([np.bincount(bid, p[idx, j], nb) for j in range(3)], 1) / cnt[:, None]
-    a = np.stack([np.bincount(bid, nrm[idx, j], nb) for j in range(3)], 1)
-    a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-30)
+    c = _sum3(bid, p[idx], nb) / cnt[:, None]
+    a = _unit(_sum3(bid, nrm[idx], nb))
     # the ball's radius from the block's own square: a guest dithered in from a neighbour sees
     # the far field up to GUEST_REACH x the parallax tolerance off, but the ball, hence the near
     # field every receiver walks, stays that of a square block (with the guests: 1.35x the frame)
@@ -246,9 +252,9 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
 
 def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[int, int]:
     """The block grid's offset (dx, dy) for a pass, each in [0, 2^max_level): the pass's point
-    of the R2 sequence, (0, 0) for pass 0 (well spread over the passes, the same for every batch and tile of a pass
-    and for the same scene anywhere: a render is repeatable, and moving the whole scene by a
-    million metres does not move its blocks). The mean of passes then has its block edges in
+    of the R2 sequence, (0, 0) for pass 0 - well spread over the passes, the same for every
+    batch and tile of a pass and for the same scene anywhere (a render is repeatable, and
+    moving the whole scene by a million metres does not move its blocks). The mean of passes then has its block edges in
     different places and averages the steps away."""
     side = 1 << int(max_level)
     k = int(pass_index)
@@ -275,9 +281,7 @@ class FarFieldShare(CutFinder):
         self.near = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 2})
         self.merge = load_compute(ctx, "pbgi_share_merge.glsl")
         self.block_mb = MicroBuffers(ctx)
-        self.grid_offset = True       # the block grid moved per pass (grid_offset()); False:
-                                      # aligned to the image (tests, measurements)
-        self.offset = (0, 0)          # the last batch's
+        self.offset = (0, 0)          # the last batch's block-grid offset (grid_offset)
         self.dither = True            # dithered block membership (DITHER); False: square blocks
         self._bufs = []
         self.frames = None            # per batch receiver: its micro-buffer's frame normal
@@ -321,8 +325,7 @@ class FarFieldShare(CutFinder):
         t0 = time.perf_counter()
         rec = RECEIVER.view(receivers.read(size=RECEIVER.nbytes * count,
                                            offset=RECEIVER.nbytes * first))
-        self.offset = (grid_offset(batch.pass_index, self.max_level) if self.grid_offset
-                       else (0, 0))
+        self.offset = grid_offset(batch.pass_index, self.max_level)
         blocks = choose_blocks(rec["pixel"], rec["position"], rec["normal"], width, m,
                                self.tolerance, self.max_level, self.max_cone, offset=self.offset,
                                dither=self.dither)

@@ -407,12 +407,13 @@ class Relighter:
                 rec = np.concatenate([rec[~coarse], rec[coarse]])
                 groups = ((0, n - coarse_n, m), (n - coarse_n, coarse_n, small))
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
+        runs = groups or ((0, n, m),)      # (start, count, M) of every run of receivers
         t1 = time.perf_counter()
         stats = RenderStats(mode=params.mode, microbuffer=m, width=w, height=h, tile=tile,
                             receivers=n, nodes=node_count,
                             bsh_mb=(self.hierarchy.nodes.nbytes + self.node_tex.nbytes) / MB,
-                            micropixels=sum(c * k * k for _, c, k in groups or ((0, n, m),)),
-                            entries=sum(c * entries(k) for _, c, k in groups or ((0, n, m),)),
+                            micropixels=sum(c * k * k for _, c, k in runs),
+                            entries=sum(c * entries(k) for _, c, k in runs),
                             coarse_receivers=coarse_n, coarse_microbuffer=small if coarse_n else 0,
                             ms_gbuffer=(t1 - t0) * 1e3)
         if self.hdri is not None:

@@ -14,7 +14,7 @@
 // at the receiver's view angle: the lobe's specular (Schlick towards 1 at grazing, times
 // lobe_spec_share) against the diffuse albedo (1 - metallic) x base; roughness's shadowing is
 // left out (a larger s: safe).
-// Needs lib/principled.glsl, lib/lobe.glsl.
+// Needs lib/common.glsl, lib/principled.glsl, lib/lobe.glsl.
 #ifndef SCANLIGHT_LOBE_SIZE_GLSL
 #define SCANLIGHT_LOBE_SIZE_GLSL
 
@@ -24,10 +24,9 @@
 #define LOBE_SINGLE_MIN 8u
 
 float lobe_share(PrincipledPrepared q, bvec2 terms, float glossy_below) {
-    const vec3 lum = vec3(0.3, 0.6, 0.1);
-    float spec = terms.x ? dot(mix(q.spec0, vec3(1.0), q.fv), lum)
+    float spec = terms.x ? luminance(mix(q.spec0, vec3(1.0), q.fv))
                            * lobe_spec_share(q, glossy_below) : 0.0;
-    float diffuse = (1.0 - q.metallic) * dot(q.base, lum);
+    float diffuse = (1.0 - q.metallic) * luminance(q.base);
     return clamp(spec / max(spec + diffuse, 1e-6), 0.0, 1.0);
 }
 

@@ -81,12 +81,19 @@ def directions_to_eq(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _ranks(img: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Each valid pixel's quantile among the valid pixels (ties share the mean rank)."""
-    from scipy.stats import rankdata
+    """Each valid pixel's quantile among the valid pixels (ties share the mean rank, as
+    scipy.stats.rankdata's "average")."""
     out = np.zeros(img.shape, np.float32)
     v = img[valid]
     if len(v):
-        out[valid] = (rankdata(v) / len(v)).astype(np.float32)
+        order = np.argsort(v, kind="stable")
+        s = v[order]
+        first = np.r_[True, s[1:] != s[:-1]]
+        starts = np.flatnonzero(first)
+        ends = np.r_[starts[1:], len(s)]
+        rank = np.empty(len(v), np.float64)
+        rank[order] = ((starts + 1 + ends) / 2)[np.cumsum(first) - 1]
+        out[valid] = (rank / len(v)).astype(np.float32)
     return out
 
 
@@ -98,16 +105,20 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), y, r * np.sin(phi)], -1)
 
 
-def basis_from(forward: np.ndarray, roll_deg: float) -> np.ndarray:
-    """Rows (right, up, forward) of a camera looking along ``forward``, rolled about it."""
-    f = forward / np.linalg.norm(forward)
-    ref = np.array([0.0, 1.0, 0.0]) if abs(f[1]) < 0.99 else np.array([1.0, 0.0, 0.0])
+def camera_bases(forwards: np.ndarray, rolls_deg) -> np.ndarray:
+    """Rows (right, up, forward) of cameras looking along each of ``forwards`` (N, 3), rolled
+    about it by each of ``rolls_deg``: (N * len(rolls), 3, 3), rolls varying fastest. One array
+    expression: a Python loop over thousands of candidates would hold the GIL in the job's
+    thread and stall the window that owns it."""
+    f = forwards / np.linalg.norm(forwards, axis=1, keepdims=True)
+    ref = np.where(np.abs(f[:, 1:2]) < 0.99, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
     r = np.cross(f, ref)
-    r /= np.linalg.norm(r)
+    r /= np.linalg.norm(r, axis=1, keepdims=True)
     u = np.cross(r, f)
-    a = np.radians(roll_deg)
-    r, u = np.cos(a) * r - np.sin(a) * u, np.sin(a) * r + np.cos(a) * u
-    return np.stack([r, u, f])
+    a = np.radians(np.asarray(rolls_deg, dtype=np.float64))[None, :, None]       # (1, R, 1)
+    r, u, f = r[:, None], u[:, None], np.broadcast_to(f[:, None], (len(f), a.shape[1], 3))
+    rr, uu = np.cos(a) * r - np.sin(a) * u, np.sin(a) * r + np.cos(a) * u
+    return np.stack([rr, uu, f], axis=2).reshape(-1, 3, 3)
 
 
 @dataclass
@@ -159,7 +170,7 @@ def coarse_search(photo_rgb: np.ndarray, faces, position, top: int = 6, check=No
     p = thumb.ravel().astype(np.float32)
     p = p - p.mean()
     dirs = fibonacci_sphere(N_DIRECTIONS)
-    bases = np.stack([basis_from(d, r) for d in dirs for r in ROLLS])     # (D*R, 3, 3)
+    bases = camera_bases(dirs, ROLLS)                                     # (D*R, 3, 3)
     results = []
     for fov in FOVS:
         cam_d = _pixel_dirs(tw, th, fov).astype(np.float32)                # (P, 3)

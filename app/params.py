@@ -259,7 +259,7 @@ PARAMS: tuple[Param, ...] = (
        "lights itself; diffuse, or glossy for a metal); 0 = occlusion only. Needs asset "
        "self-occlusion.", 0, 2, "",
        label="asset bounces", redo="gi"),
-    _i("pbgi.asset_surfels", 8192, "Surfels the asset is sampled into (self-occlusion, bounce "
+    _i("pbgi.asset_surfels", 4096, "Surfels the asset is sampled into (self-occlusion, bounce "
        "and its shadow on the scan); more resolve smaller creases.", 1024, 262144, "",
        label="asset surfels", redo="gi"),
     _f("pbgi.envmap_beyond", 4.0, "Clearance (distance from the asset to the nearest scan point, "

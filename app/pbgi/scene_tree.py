@@ -25,15 +25,15 @@ from app.pbgi import layout
 from app.pbgi.hierarchy import Hierarchy, build_bsh, merge_spheres, recolor, round_spheres
 
 # A surfel leaf's disc radius, in units of the radius of the surfel's own area (sqrt(A / (n pi))).
-# Discs of exactly that area cover only ~2/3 of a face: the surfels are spread evenly over the
-# triangles but drawn at random inside each one (Poisson-like), and the gaps, 1/e of a face, let
-# the room shine through the asset. Measured on the blocks' plate (8192 surfels): 66% of its
-# front covered at 1.0, 80% at 1.25, 91% at 1.5; the rough metal blocks' faces that look at the
-# plate were 1.5-2x too bright in the direct light (tests/pbgi/test_asset_reference.py: 14.0% ->
-# 8.8% in the apartment; diffuse 5.9% -> 3.5%). Wider discs only overlap more on a flat face
-# (the depth test keeps one), and the neighbours of a receiver on a convex part stay behind it
-# (app/pbgi/surfels.py).
-LEAF_DISC = 1.5
+# Discs of exactly that area cannot tile a face: where they leave gaps the room shines through
+# the asset. With the surfels stratified inside each triangle (app/pbgi/surfels.py) a flat face
+# is 79% covered at 1.0, 94% at 1.25 and 99% at 1.5 (it was 66 / 80 / 91% with independent
+# points, when 1.5 was needed). Wider discs overhang the faces' edges and shade their
+# neighbours: 1.25 measured best over the blocks against the path tracer (4096 surfels, 4x4
+# error, Classic: at 1.5 apartment diffuse 3.3% / rough metal 4.0%, city 6.0 / 7.1%; at 1.25
+# 2.4 / 3.8%, 4.9 / 6.6%; at 1.1 2.4 / 5.7%, 4.5 / 6.5%). The neighbours of a receiver on a
+# convex part stay behind it (app/pbgi/surfels.py).
+LEAF_DISC = 1.25
 
 
 @dataclass

@@ -9,7 +9,8 @@ mode's walk meets the asset's discs in the same micro-buffer, with the same dept
 room's points: the asset shadows the room for its own receivers.
 
 Sampling is stratified over the surface area (systematic sampling of the triangles' cumulative
-area: the i-th surfel sits at area (i + u_i) / n), so surfels are spread evenly without a
+area: the i-th surfel sits at area (i + u_i) / n), and the surfels that share a triangle are
+stratified inside it too (``_spread_in_triangles``), so surfels are spread evenly without a
 Poisson pass and the result is deterministic for a seed. Each surfel stands for area A / n: its
 disc radius is sqrt(A / (n pi)), the radius of the leaves of its tree.
 
@@ -62,6 +63,38 @@ def _sample_texture(tex, uv: np.ndarray) -> np.ndarray:
     return t[y, x]
 
 
+def _radical_inverse2(j: np.ndarray) -> np.ndarray:
+    """Van der Corput's base-2 radical inverse of non-negative integers below 2^32."""
+    v = j.astype(np.uint64) & np.uint64(0xFFFFFFFF)
+    for shift, mask in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF)):
+        m, sh = np.uint64(mask), np.uint64(shift)
+        v = ((v >> sh) & m) | ((v & m) << sh)
+    v = ((v >> np.uint64(16)) | (v << np.uint64(16))) & np.uint64(0xFFFFFFFF)
+    return v.astype(np.float64) / 2.0 ** 32
+
+
+def _spread_in_triangles(face: np.ndarray, rng) -> np.ndarray:
+    """(n, 3) barycentrics of the surfels on each triangle (``face`` sorted): the k that share a
+    triangle form a Hammersley set ((j + 1/2) / k, radical inverse of j), shifted on the torus
+    by one random offset per triangle and mapped to the triangle by Heitz's area-preserving,
+    low-distortion square-to-triangle map (2019). Independent uniform points leave Poisson gaps
+    (about 1/e of a large face uncovered by discs of the surfels' own area), through which the
+    room shines through the asset; a stratified set closes them at the same count."""
+    n = len(face)
+    start = np.r_[True, face[1:] != face[:-1]]
+    first = np.flatnonzero(start)
+    group = np.cumsum(start) - 1
+    k = np.diff(np.r_[first, n])[group]
+    j = np.arange(n) - first[group]
+    shift = rng.random((len(first), 2))[group]
+    u1 = np.mod((j + 0.5) / k + shift[:, 0], 1.0)
+    u2 = np.mod(_radical_inverse2(j) + shift[:, 1], 1.0)
+    lower = u2 > u1
+    b0 = np.where(lower, 0.5 * u1, u1 - 0.5 * u2)
+    b1 = np.where(lower, u2 - 0.5 * u1, 0.5 * u2)
+    return np.stack([b0, b1, 1.0 - b0 - b1], axis=1)
+
+
 def sample_surfels(mesh, count: int, seed: int = 0) -> Surfels:
     """``count`` surfels of equal area spread over ``mesh`` (see the module docstring)."""
     count = int(count)
@@ -78,11 +111,7 @@ def sample_surfels(mesh, count: int, seed: int = 0) -> Surfels:
     cum = np.cumsum(areas)
     targets = (np.arange(count) + rng.random(count)) * (total / count)
     face = np.searchsorted(cum, targets, side="right").clip(0, len(tri) - 1)
-    # barycentrics: uniform over the triangle
-    r1, r2 = rng.random(count), rng.random(count)
-    s = np.sqrt(r1)
-    b0, b1, b2 = 1.0 - s, s * (1.0 - r2), s * r2
-    bc = np.stack([b0, b1, b2], axis=1)
+    bc = _spread_in_triangles(face, rng)
     pos = np.einsum("nk,nkc->nc", bc, p[face])
     nrm = np.einsum("nk,nkc->nc", bc, mesh.normals[tri[face]].astype(np.float64))
     length = np.linalg.norm(nrm, axis=1, keepdims=True)

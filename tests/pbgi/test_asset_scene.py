@@ -46,6 +46,21 @@ def test_surfels_cover_the_surface_evenly():
     assert np.abs(counts / (len(s) / 8) - 1).max() < 0.05
 
 
+def test_surfels_on_a_large_face_leave_no_poisson_gaps():
+    """Two triangles of a square share 2048 surfels: stratified inside each triangle, discs of
+    LEAF_DISC x their own radius cover at least 92% of the square (independent uniform points
+    cover 80%: 1 - exp(-1.25^2)), and every point lies inside its triangle."""
+    from scipy.spatial import cKDTree
+
+    from app.pbgi.scene_tree import LEAF_DISC
+    s = sample_surfels(S.quad((0.5, 0.5, 0.0), (0.0, 0.0, 1.0), size=1.0), 2048, seed=3)
+    g = np.stack(np.meshgrid(np.linspace(0.03, 0.97, 200), np.linspace(0.03, 0.97, 200)), -1)
+    d, _ = cKDTree(s.positions[:, :2]).query(g.reshape(-1, 2))
+    covered = float(np.mean(d < LEAF_DISC * s.radius))
+    assert covered >= 0.92, covered
+    assert s.positions[:, :2].min() >= -1e-9 and s.positions[:, :2].max() <= 1 + 1e-9
+
+
 def test_join_keeps_both_trees_under_one_root(shell):
     """Node 0 is a new root whose children are the room's root (1) and the asset's; the room's
     records are copied with their skip shifted, the asset's re-expressed in the room's origin;

@@ -132,3 +132,31 @@ def test_a_photo_that_neither_registers_nor_matches_is_refused():
     res = run_expansion(sc.ldr, other.photo, sc.capture_positions,
                         params=ExpandParams(face_size=256, registration="off"))
     assert res.report["low_match_quality"] and res.report["path"] == "matching"
+
+
+def test_candidate_cameras_and_ranks_match_their_definitions():
+    """The coarse search's array code (it runs in the expansion's thread and must not hold the
+    GIL in a Python loop) against the definitions: each basis is orthonormal, looks along its direction, and its roll turns right about forward
+    by the roll angle from the unrolled camera; ranks are scipy's "average" ranks. (Rows right,
+    up, forward with right x up = -forward: x right, y up, z forward in camera space, a
+    left-handed frame, as _pixel_dirs builds the rays.)"""
+    from scipy.stats import rankdata
+
+    from app.hdr import alignment as al
+    dirs = al.fibonacci_sphere(50)
+    dirs[0] = (0.0, 1.0, 0.0)                      # straight up: the other reference axis
+    rolls = (-40, 0, 25)
+    b = al.camera_bases(dirs, rolls).reshape(len(dirs), len(rolls), 3, 3)
+    eye = np.einsum("drij,drkj->drik", b, b)
+    assert np.abs(eye - np.eye(3)).max() < 1e-12
+    assert np.abs(np.cross(b[..., 0, :], b[..., 1, :]) + b[..., 2, :]).max() < 1e-12
+    assert np.abs(b[..., 2, :] - dirs[:, None, :]).max() < 1e-12
+    for r, roll in enumerate(rolls):
+        cos = np.einsum("dj,dj->d", b[:, r, 0], b[:, 1, 0])
+        assert np.abs(np.degrees(np.arccos(np.clip(cos, -1, 1))) - abs(roll)).max() < 1e-4
+    rng = np.random.default_rng(2)
+    img = np.round(rng.random((30, 40)) * 12)        # many ties
+    valid = rng.random((30, 40)) > 0.4
+    ranks = al._ranks(img, valid)
+    assert np.allclose(ranks[valid], rankdata(img[valid]) / valid.sum())
+    assert (ranks[~valid] == 0).all()

@@ -4,7 +4,9 @@ Two steps, both on log luminance (an exposure is a constant offset there):
 - ``coarse_search``: every candidate view direction (a Fibonacci sphere), roll and field of view,
   from the capture position, scored by the zero-normalised cross-correlation of a thumbnail of the
   photo with the capture's panorama (the cube-map renderings resampled to equirectangular) seen
-  through that candidate camera. Cheap because both images are tiny; it finds the basin.
+  through that candidate camera. Cheap because both images are tiny; it finds the basin. The
+  best distinct candidates are then polished on finer grids around them (``polish_candidates``):
+  a narrow photo's basin is narrower than the grid.
 - ``refine``: from a start camera, minimise over rotation, field of view and position the robust
   spread of log(Y_scan) - log(Y_photo) at sample points of the scan (projected into the photo,
   back-facing points skipped, saturated scan points left out), at increasing photo resolution.
@@ -28,6 +30,8 @@ N_DIRECTIONS = 500           # candidate view directions (about 9 degrees apart)
 ROLLS = tuple(range(-40, 41, 10))
 FOVS = tuple(range(30, 121, 10))
 CHUNK = 512                  # candidates per vectorised block (bounded memory, GIL released often)
+POLISH = 32                  # distinct coarse candidates polished on a finer grid (polish_candidates)
+POLISH_STEPS = ((4.0, 5.0), (2.0, 2.5), (1.0, 1.25))   # (degrees of rotation, of fov) per round
 TRUNCATE = 0.7               # log-residual beyond which a point counts as an outlier (~2x)
 
 
@@ -182,15 +186,68 @@ def coarse_search(photo_rgb: np.ndarray, faces, position, top: int = 6, check=No
             for b in np.argsort(-z)[:top]:
                 results.append(Candidate(bases[b0 + b], float(fov), float(z[b]),
                                          np.asarray(position, dtype=np.float64)))
-    results.sort(key=lambda c: -c.score)
-    # keep distinct ones: forward directions at least 5 degrees apart
+    polished = polish_candidates(_distinct(results, POLISH), eq, valid, p, tw, th, check)
+    return _distinct(polished, top)
+
+
+def _distinct(cands: list[Candidate], top: int) -> list[Candidate]:
+    """The best ``top`` of ``cands`` whose forward directions lie at least 5 degrees apart (or
+    whose fields of view differ by more than 15), best first."""
     out = []
-    for c in results:
+    for c in sorted(cands, key=lambda c: -c.score):
         if all(np.dot(c.basis[2], o.basis[2]) < np.cos(np.radians(5)) or abs(c.fov - o.fov) > 15
                for o in out):
             out.append(c)
         if len(out) == top:
             break
+    return out
+
+
+def _turns(step_deg: float) -> np.ndarray:
+    """(27, 3, 3) rotations by -step, 0, +step degrees about each camera axis (x, y, z), in
+    the camera's own frame: yaw, pitch and roll."""
+    a = np.radians(step_deg) * np.array([-1.0, 0.0, 1.0])
+    c, s = np.cos(a), np.sin(a)
+    one, zero = np.ones(3), np.zeros(3)
+    rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, c, -s], -1),
+                   np.stack([zero, s, c], -1)], 1)
+    ry = np.stack([np.stack([c, zero, s], -1), np.stack([zero, one, zero], -1),
+                   np.stack([-s, zero, c], -1)], 1)
+    rz = np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1),
+                   np.stack([zero, zero, one], -1)], 1)
+    return np.einsum("aij,bjk,ckl->abcil", rx, ry, rz).reshape(27, 3, 3)
+
+
+def polish_candidates(cands: list[Candidate], eq, valid, p, tw: int, th: int,
+                      check=None) -> list[Candidate]:
+    """Each candidate moved to the best ZNCC on finer grids around it: per round of
+    POLISH_STEPS, the 27 turns of -s, 0, +s about its three axes times fov - d, fov, fov + d,
+    kept when better. Why: the coarse grid is 9 degrees, 10 degrees of roll and 10 of fov
+    apart, and a narrow photo's score falls off faster than that - a 40-degree photo of the
+    demo room scored 0.93 at its true camera, 0.77 at the nearest grid point (20th of 45,000),
+    so the screening never saw it; polishing the best distinct ones finds it (0.96)."""
+    out = []
+    fovs_cache = {}
+    for c in cands:
+        basis, fov, score = np.asarray(c.basis, np.float64), float(c.fov), float(c.score)
+        for rot, dfov in POLISH_STEPS:
+            if check is not None:
+                check()
+            bases = np.einsum("tij,jk->tik", _turns(rot), basis)          # (27, 3, 3)
+            best = (score, basis, fov)
+            for f in (fov - dfov, fov, fov + dfov):
+                if not 10.0 <= f <= 150.0:
+                    continue
+                key = round(f, 4)
+                if key not in fovs_cache:
+                    fovs_cache[key] = _pixel_dirs(tw, th, f).astype(np.float32)
+                z = _zncc(eq, valid, p, np.matmul(fovs_cache[key][None],
+                                                  bases.astype(np.float32)))
+                k = int(np.argmax(z))
+                if z[k] > best[0]:
+                    best = (float(z[k]), bases[k], f)
+            score, basis, fov = best
+        out.append(Candidate(basis, fov, score, c.position))
     return out
 
 

@@ -179,3 +179,22 @@ def test_candidate_cameras_and_ranks_match_their_definitions():
     ranks = al._ranks(img, valid)
     assert np.allclose(ranks[valid], rankdata(img[valid]) / valid.sum())
     assert (ranks[~valid] == 0).all()
+
+
+def test_the_photo_read_perfectly_changes_only_the_saturated_points_it_sees():
+    """bench expand's photo-only Table 2 column: the seen saturated points at their true value
+    (in the scan's units), everything else as scanned."""
+    from app.bench.expand_rooms import photo_read_perfectly
+    from app.cloud import PointCloud
+    rng = np.random.default_rng(0)
+    n = 200
+    pos, nrm = rng.random((n, 3)), np.tile(np.float32([0, 0, 1]), (n, 1))
+    gt = PointCloud(pos, nrm, (rng.random((n, 3)) * 5).astype(np.float32), True, "gt")
+    ldr = PointCloud(pos, nrm, np.clip(gt.colors * 0.5, 0, 1).astype(np.float32), False, "ldr")
+    seen = rng.random(n) > 0.5
+    out = photo_read_perfectly(ldr, gt, seen, 0.5, 0.9)
+    from app.color import luminance
+    told = (luminance(ldr.colors) > 0.9) & seen
+    assert told.any() and (~told).any()
+    assert np.allclose(out.colors[told], gt.colors[told] * 0.5)
+    assert np.array_equal(out.colors[~told], ldr.colors[~told]) and out.hdr

@@ -85,19 +85,12 @@ def directions_to_eq(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _ranks(img: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Each valid pixel's quantile among the valid pixels (ties share the mean rank, as
-    scipy.stats.rankdata's "average")."""
+    """Each valid pixel's quantile among the valid pixels (ties share the mean rank)."""
+    from scipy.stats import rankdata
     out = np.zeros(img.shape, np.float32)
     v = img[valid]
     if len(v):
-        order = np.argsort(v, kind="stable")
-        s = v[order]
-        first = np.r_[True, s[1:] != s[:-1]]
-        starts = np.flatnonzero(first)
-        ends = np.r_[starts[1:], len(s)]
-        rank = np.empty(len(v), np.float64)
-        rank[order] = ((starts + 1 + ends) / 2)[np.cumsum(first) - 1]
-        out[valid] = (rank / len(v)).astype(np.float32)
+        out[valid] = (rankdata(v) / len(v)).astype(np.float32)
     return out
 
 
@@ -205,7 +198,7 @@ def _distinct(cands: list[Candidate], top: int) -> list[Candidate]:
 
 def _turns(step_deg: float) -> np.ndarray:
     """(27, 3, 3) rotations by -step, 0, +step degrees about each camera axis (x, y, z), in
-    the camera's own frame: yaw, pitch and roll."""
+    the camera's own frame: pitch, yaw and roll."""
     a = np.radians(step_deg) * np.array([-1.0, 0.0, 1.0])
     c, s = np.cos(a), np.sin(a)
     one, zero = np.ones(3), np.zeros(3)

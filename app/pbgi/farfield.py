@@ -96,6 +96,7 @@ import time
 import numpy as np
 
 from app.pbgi.classic import ClassicCut
+from app.pbgi.gbuffer import r2_point
 from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, IMAGE, RECEIVER, SHARE_NONE,
                                  SHARE_ROW, SSBO, dispatch_groups)
 from app.pbgi.microbuffer import ENTRY_BYTES, MicroBuffers, entries
@@ -257,9 +258,8 @@ def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[in
     moving the whole scene by a million metres does not move its blocks). The mean of passes then has its block edges in
     different places and averages the steps away."""
     side = 1 << int(max_level)
-    k = int(pass_index)
-    return (int((k * 0.7548776662466927) % 1.0 * side),
-            int((k * 0.5698402909980532) % 1.0 * side))
+    u, v = r2_point(int(pass_index))
+    return int(u * side), int(v * side)
 
 
 class FarFieldShare(CutFinder):

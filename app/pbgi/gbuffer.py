@@ -32,6 +32,14 @@ TEXTURE_UNITS = {"base": 0, "mr": 1, "normal": 2}   # the G-buffer program's mat
 PLASTIC = 1.32471795724474602596     # the plastic number: the R2 low-discrepancy sequence
 
 
+def r2_point(index: int, start: float = 0.0) -> tuple[float, float]:
+    """Point ``index`` of the R2 low-discrepancy sequence (Roberts 2018) in [0, 1)^2, from
+    (start, start): evenly spread for any number of points. Passes use it for their pixel
+    jitter and for Hybrid's block-grid offset (app/pbgi/farfield.py: grid_offset)."""
+    a1, a2 = 1.0 / PLASTIC, 1.0 / (PLASTIC * PLASTIC)
+    return float((start + a1 * index) % 1.0), float((start + a2 * index) % 1.0)
+
+
 def pass_jitter(pass_index: int) -> tuple[float, float]:
     """Where in its pixel pass ``pass_index`` samples, (dx, dy) in pixels from the centre, x to
     the right, y down. Pass 0 is the centre (one pass = the plain render); later passes follow
@@ -40,8 +48,8 @@ def pass_jitter(pass_index: int) -> tuple[float, float]:
     pixel filter) plus the lobe buffers' jitter averaged."""
     if pass_index <= 0:
         return 0.0, 0.0
-    a1, a2 = 1.0 / PLASTIC, 1.0 / (PLASTIC * PLASTIC)
-    return (float((0.5 + a1 * pass_index) % 1.0) - 0.5, float((0.5 + a2 * pass_index) % 1.0) - 0.5)
+    u, v = r2_point(pass_index, 0.5)
+    return u - 0.5, v - 0.5
 
 
 def tile_projection(camera: Camera, near: float, far: float, tile, jitter=(0.0, 0.0)) -> np.ndarray:

@@ -51,7 +51,7 @@ R2 sequence), so the mean of passes (the viewer's idle passes,
 ``render --passes``) has its edges in different places and the steps average away; the grid
 no longer follows the Z-order, so a block is any set of receivers and the merge of a chunk
 dispatches over the range its blocks span. Free: no extra walk. Measured on the demo close-up
-(96 x 96, diffuse 0.6, llvmpipe; app/bench/image_metrics.py: block_steps = mean adjacent-pixel
+(96 x 96, diffuse 0.6, llvmpipe; tests/support/block_steps.py: mean adjacent-pixel
 difference across / inside the blocks of the render's own grid, in % of the mean radiance;
 error against Classic at M = 32 with as many passes):
 

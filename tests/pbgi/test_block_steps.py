@@ -1,4 +1,4 @@
-"""The block-step metric (app/bench/image_metrics.py: block_steps) on synthetic images whose
+"""The block-step metric (tests/support/block_steps.py) on synthetic images whose
 answer is known: Hybrid's far-field sharing is tested with it (tests/pbgi/test_pbgi_farfield.py)."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.bench.image_metrics import block_steps
+from tests.support.block_steps import block_steps
 
 
 def _disc(n: int) -> np.ndarray:

@@ -210,7 +210,7 @@ def test_an_offset_block_grid_gives_squares_of_the_shifted_grid():
 def test_passes_move_the_block_grid_and_average_the_block_steps_away(demo_relighter):
     """Hybrid at M = 16 on the demo close-up, 64 x 64. A block quantises a bright far node into
     micro-pixels once for all its receivers: the error is the same over the block and jumps at
-    its edge (app/bench/image_metrics.py: block_steps). Every pass moves the block grid
+    its edge (tests/support/block_steps.py). Every pass moves the block grid
     (farfield.grid_offset: the pass's point of the R2 sequence), so the mean of 4 passes (the
     viewer's idle passes) has no step that stays on one grid: over every phase of the 4 x 4
     grid (the blocks are mostly 4 x 4 at this size), adjacent-pixel differences across a
@@ -218,7 +218,8 @@ def test_passes_move_the_block_grid_and_average_the_block_steps_away(demo_religh
     random offsets measured 1.2-1.55x), and the 4x4-pooled error against Classic at M = 32 (4
     passes) is below 5% (today 5.8%; Classic M = 16 3.0%; measured 2.8-4.3%). One pass keeps
     its steps, on its own grid (measured 2.2-2.4x there)."""
-    from app.bench.image_metrics import block_steps, relative_rmse
+    from app.bench.image_metrics import relative_rmse
+    from tests.support.block_steps import block_steps
     from app.demo.room import default_views
     r = demo_relighter
     cam = default_views(64, 64)["closeup"]
@@ -248,7 +249,8 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
     (measured 1.48x; square blocks 2.55x, Classic M = 16 1.10x), and the 4x4-pooled error
     against Classic at M = 32 is Classic M = 16's within 1.5 points (measured 5.2% against
     4.4%; square blocks 6.6%)."""
-    from app.bench.image_metrics import block_steps, relative_rmse
+    from app.bench.image_metrics import relative_rmse
+    from tests.support.block_steps import block_steps
     from app.demo.room import default_views
     r = demo_relighter
     cam = default_views(96, 96)["closeup"]

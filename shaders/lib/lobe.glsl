@@ -318,18 +318,9 @@ uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_mi
 // Tests: tests/pbgi/test_lobe_anisotropic.py (brute force over every micro-pixel's rays: none a
 // node can hit is outside; 1.19 micro-pixels per hit one, the widened disc 1.68; a 20% cut of the
 // slope radius, the azimuths or the rectangle, or the 12-gon inscribed, misses some).
-// Measured (demo close-up 128 px, M 16 (8 x 8 lobe micro-pixels), gold metallic 1 roughness 0.25;
-// one run, old and new interleaved, median of 3 frames, this machine's llvmpipe):
-//                       anisotropic 1: frame, lobe tests / visits per receiver   isotropic   ratio
-//   Hybrid  wide disc   6.06 s   15877 / 3271                                    1.65 s      3.7x
-//           12-gon      4.03 s    4525 / 2065                                    1.66 s      2.4x
-//   Classic wide disc   6.56 s                                                   2.18 s      3.0x
-//           12-gon      4.51 s                                                   2.14 s      2.1x
-// Most of the gain is the cut's: the smallest micro-pixel the node covers is now the tight
-// rectangle's, so coarser nodes are accepted (visits 3271 -> 2065). The tight rectangle alone
-// (with the wide disc's smallest micro-pixel) gives the bit-identical image at 6-7% less time; with
-// both, the image moves by 2.4% per pixel (0.7% pooled 4 x 4), where two jitter passes differ
-// by 12.5% (3.2%).
+// Why it pays: the smallest micro-pixel a node covers is the tight rectangle's, so the cut
+// accepts coarser nodes (fewer visits) and each tests fewer micro-pixels; the widened disc made
+// an anisotropic glossy frame several times the isotropic one (README, "anisotropic", measured).
 #define LOBE_RECT_EPS 1e-3
 
 // lobe_rect through the stretch, wide: the node's disc of angular radius bh in true h maps to

@@ -19,8 +19,11 @@ the GI render scale (1, 1/2, 1/4: the asset's GI rendered at that fraction of th
 and brought back by joint bilateral upsampling, app/pbgi/upsample.py), and varies the rest one
 at a time around Hybrid M = 16: M = 8, the parallax tolerance, the Omega_tr factor, the node
 stop factor (1 Omega against the paper's 4 Omega), Classic (M 16 and 24, scale 1/2, stop 1),
-Mipmapped, and the environment-map baseline's face size. ``--quick`` runs a handful of settings on one room and
-two materials.
+Mipmapped, and the environment-map baseline's face size; then the scene-dependent switches off,
+one at a time, against the presets' settings (shader variants; the glossy metal's small cosine
+micro-buffer, measured on the glossy material alone, the only one it changes), so each
+decision's time and error with and without are in the same records. ``--quick`` runs a
+handful of settings on one room and two materials.
 
 Outputs: the records (``--json``), a CSV (``--csv``), a PNG (``--plot``) of error against time
 per room and material with each one's Pareto front (``pareto``), and the suggested presets
@@ -80,6 +83,9 @@ class Setting:
     name: str
     values: tuple                     # ((key, value), ...): RenderParams overrides
     scale: float = 1.0
+    # the materials it is measured on (None: every one): a "model only what the scene needs"
+    # switch is measured only where it changes the frame (the lobe-only buffer: glossy metals)
+    materials: tuple | None = None
 
     @property
     def params(self) -> dict:
@@ -92,20 +98,25 @@ class Setting:
                 "stop_factor": p.get("pbgi.stop_factor"),
                 "parallax_tolerance": p.get("pbgi.parallax_tolerance"),
                 "omega_tr_factor": p.get("pbgi.omega_tr_factor"),
-                "envmap_face": p.get("pbgi.envmap_face")}
+                "envmap_face": p.get("pbgi.envmap_face"),
+                "shader_variants": p.get("pbgi.shader_variants"),
+                "lobe_only_microbuffer": p.get("pbgi.lobe_only_microbuffer")}
 
 
 def _scale_name(s: float) -> str:
     return "1" if s == 1 else f"1/{round(1 / s)}"
 
 
-def make_setting(mode: str, scale: float = 1.0, **kw) -> Setting:
-    """A Setting from short names (m, stop, tol, omega_tr, face); the name says every non-default."""
+def make_setting(mode: str, scale: float = 1.0, materials=None, **kw) -> Setting:
+    """A Setting from short names (m, stop, tol, omega_tr, face, variants, lobe_only); the name
+    says every non-default."""
     keys = {"m": "pbgi.microbuffer", "stop": "pbgi.stop_factor", "tol": "pbgi.parallax_tolerance",
-            "omega_tr": "pbgi.omega_tr_factor", "face": "pbgi.envmap_face"}
+            "omega_tr": "pbgi.omega_tr_factor", "face": "pbgi.envmap_face",
+            "variants": "pbgi.shader_variants", "lobe_only": "pbgi.lobe_only_microbuffer"}
     values = [("pbgi.mode", mode)] + [(keys[k], v) for k, v in kw.items()]
     words = [mode] + [f"{k}={v:g}" for k, v in kw.items()] + [f"scale={_scale_name(scale)}"]
-    return Setting(" ".join(words), tuple(values), float(scale))
+    return Setting(" ".join(words), tuple(values), float(scale),
+                   tuple(materials) if materials else None)
 
 
 def settings(grid: str) -> list[Setting]:
@@ -128,6 +139,12 @@ def settings(grid: str) -> list[Setting]:
             make_setting("hybrid", m=16, tol=0.5), make_setting("hybrid", m=16, tol=2.0),
             make_setting("hybrid", m=16, omega_tr=32.0), make_setting("mipmapped", m=16),
             make_setting("envmap", face=32), make_setting("envmap", face=128)]
+    # "model only what the scene needs", each switch off against the balanced and final
+    # settings: one gather program with every feature (no shader variants), and the glossy
+    # metal's cosine micro-buffer at M rather than pbgi.lobe_only_microbuffer
+    out += [make_setting("hybrid", m=24, variants=False),
+            make_setting("hybrid", m=24, lobe_only=0, materials=("glossy",)),
+            make_setting("classic", m=24, lobe_only=0, materials=("glossy",))]
     return out
 
 
@@ -328,7 +345,8 @@ def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rms
 # -- outputs ----------------------------------------------------------------------------------
 
 CSV_FIELDS = ("room", "material", "setting", "mode", "microbuffer", "scale", "stop_factor",
-              "parallax_tolerance", "omega_tr_factor", "envmap_face", "ms", "ms_min", "ms_max",
+              "parallax_tolerance", "omega_tr_factor", "envmap_face", "shader_variants",
+              "lobe_only_microbuffer", "ms", "ms_min", "ms_max",
               "rel_rmse", "rel_rmse_4x4", "flip", "ref_noise", "ref_noise_4x4", "completed",
               "on_front")
 
@@ -457,6 +475,8 @@ def run(args) -> list[dict]:
         refs = {k: reference(room, k, rl, cloud, mesh, cam, spp, refdir) for k in mats}
         for si, st in enumerate(grid):
             for kind in mats:
+                if st.materials is not None and kind not in st.materials:
+                    continue
                 image, m = measure(rl, cam, material(kind), st, args.frames)
                 ref = refs[kind]
                 err = evaluate(image, ref.image)

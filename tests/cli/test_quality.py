@@ -163,6 +163,15 @@ def test_the_grids_name_each_setting_once_and_make_valid_params():
     assert {s.params["pbgi.mode"] for s in full} == {"classic", "mipmapped", "hybrid", "envmap"}
     assert {s.scale for s in full} == {1.0, 0.5, 0.25}
     assert {s.params.get("pbgi.stop_factor") for s in full} >= {1.0}
+    # the scene-dependent switches are measured off against the presets' settings, the
+    # lobe-only buffer only on the one material it changes (a glossy metal)
+    off = {s.name: s for s in full if s.params.get("pbgi.shader_variants") is False
+           or s.params.get("pbgi.lobe_only_microbuffer") == 0}
+    assert {s.params["pbgi.mode"] for s in off.values()} == {"hybrid", "classic"}
+    for s in off.values():
+        if "pbgi.lobe_only_microbuffer" in s.params:
+            assert s.materials == ("glossy",) and T.material("glossy").metallic == 1.0
+        assert s.materials is None or set(s.materials) <= set(T.MATERIALS)
 
 
 def test_tradeoff_bench_refuses_bad_arguments(capsys):

@@ -155,10 +155,11 @@ def test_a_photo_that_neither_registers_nor_matches_is_refused():
 
 def test_candidate_cameras_and_ranks_match_their_definitions():
     """The coarse search's array code (it runs in the expansion's thread and must not hold the
-    GIL in a Python loop) against the definitions: each basis is orthonormal, looks along its direction, and its roll turns right about forward
-    by the roll angle from the unrolled camera; ranks are scipy's "average" ranks. (Rows right,
-    up, forward with right x up = -forward: x right, y up, z forward in camera space, a
-    left-handed frame, as _pixel_dirs builds the rays.)"""
+    GIL in a Python loop) against the definitions: each basis is orthonormal, looks along its
+    direction, and its roll turns right about forward by the roll angle from the unrolled
+    camera; ranks are scipy's "average" ranks. (Rows right, up, forward with right x up =
+    -forward: x right, y up, z forward in camera space, a left-handed frame, as _pixel_dirs
+    builds the rays.)"""
     from scipy.stats import rankdata
 
     from app.hdr import alignment as al

@@ -21,6 +21,10 @@
 // With IRRADIANCE the BRDF is a white Lambertian one, f = 1 / pi, whatever the material: the output
 // is E / pi, the diffuse outgoing radiance per unit albedo (the asset's surfel bounce and the
 // differential rendering of the scan, app/pbgi/renderer.py's gather_points).
+// With GATHER_PARTS the same sums are kept apart per BRDF factor (lib/principled.glsl:
+// PrincipledParts) and stored per tile pixel as GatherParts (gen/gather_output.glsl); L_out is
+// their recombination with the receiver's own factors - the one app/pbgi/gather_parts.py repeats
+// in numpy for another base colour, metallic, specular, sheen or clearcoat amount.
 // Output per tile pixel: GatherOutput (L_out, status 1; -1 marks a gather loop the driver cut
 // short).
 #include "lib/common.glsl"
@@ -76,6 +80,29 @@ vec3 node_radiance(uint node, vec3 w, uint first, int width) {
 }
 #endif
 
+#ifdef GATHER_PARTS
+// One direction's radiance L w (w: its weight) into the parts, every lobe / the narrow ones.
+void gather_parts_add_lobes(inout GatherParts P, PrincipledParts r, vec3 Lw) {
+    P.spec_f0 += (r.spec * (1.0 - r.fh)) * Lw;
+    P.spec_one += (r.spec * r.fh) * Lw;
+    P.coat += r.coat * Lw;
+}
+void gather_parts_add(inout GatherParts P, PrincipledParts r, vec3 Lw) {
+    P.diffuse += r.diffuse * Lw;
+    P.sheen += r.fh * Lw;
+    gather_parts_add_lobes(P, r, Lw);
+}
+// The receiver's own factors on the parts: what principled_lobes_prepared multiplies in.
+vec3 gather_parts_radiance(PrincipledPrepared q, GatherParts P) {
+#ifdef PRINCIPLED_NO_SHEEN
+    vec3 base = q.base * P.diffuse;
+#else
+    vec3 base = q.base * P.diffuse + q.sheen_w * P.sheen;
+#endif
+    return base * (1.0 - q.metallic) + q.spec0 * P.spec_f0 + P.spec_one + q.clearcoat * P.coat;
+}
+#endif
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
@@ -95,6 +122,10 @@ void main() {
 
     uint mm = mb_entries();
     vec3 sum = vec3(0.0);
+#ifdef GATHER_PARTS
+    GatherParts P = GatherParts(vec3(0.0), receiver_material(rid), vec3(0.0), vec3(0.0),
+                                vec3(0.0), vec3(0.0));
+#endif
 #if !defined(RADIANCE_CUBEMAP) && defined(ASSET_DIRECTIONAL)
     vec2 first_halves = texelFetch(u_asset_dir, ivec2(0), 0).xy;
     uint asset_dir_first = (uint(first_halves.x) << 16) | uint(first_halves.y);
@@ -129,7 +160,16 @@ void main() {
         if (node == MB_EMPTY) continue;
         vec3 L = node_radiance(node, w, asset_dir_first, asset_dir_width);
 #endif
+#if defined(GATHER_PARTS)
+        PrincipledParts r = principled_parts_prepared(Q, w);
 #ifdef LOBE_BUFFER
+        if (lobed && lobe_inside(F, w)) {       // those lobes come from the lobe buffer
+            if (terms.x) r.spec *= 1.0 - spec_share;
+            if (terms.y) r.coat = 0.0;
+        }
+#endif
+        gather_parts_add(P, r, L * weight);
+#elif defined(LOBE_BUFFER)
         vec3 fb, fs, fc;
         principled_lobes_prepared(Q, w, fb, fs, fc);
         if (lobed && lobe_inside(F, w)) {       // those lobes come from the lobe buffer
@@ -162,13 +202,24 @@ void main() {
             if (node == MB_EMPTY) continue;
             vec3 L = node_radiance(node, w, asset_dir_first, asset_dir_width);
 #endif
+#ifdef GATHER_PARTS
+            PrincipledParts r = principled_parts_prepared(Q, w);
+            r.spec *= terms.x ? spec_share : 0.0;
+            if (!terms.y) r.coat = 0.0;
+            gather_parts_add_lobes(P, r, L * (omega * dot(N, w)));   // no wide lobes here
+#else
             vec3 fb, fs, fc;
             principled_lobes_prepared(Q, w, fb, fs, fc);
             vec3 f = (terms.x ? spec_share * fs : vec3(0.0)) + (terms.y ? fc : vec3(0.0));
             sum += f * L * (omega * dot(N, w));
+#endif
         }
         complete = complete && k == cells;
     }
+#endif
+#ifdef GATHER_PARTS
+    sum = gather_parts_radiance(Q, P);
+    gather_parts_store(receiver_pixel(rid), P);
 #endif
     gather_output_store(receiver_pixel(rid), GatherOutput(sum, complete ? 1.0 : -1.0));
 }

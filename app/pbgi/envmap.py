@@ -84,7 +84,7 @@ class EnvmapMode(RenderMode):
         tg = time.perf_counter()
         frame.gather.run(frame.receivers, frame.materials, frame.output, 0, frame.count, frame.m,
                          frame.camera_rel, env=env, lobe=frame.lobe,
-                         absent=frame.absent_features)
+                         absent=frame.absent_features, parts=frame.parts)
         self.ctx.finish()
         stats.ms_gather = (time.perf_counter() - tg) * 1e3
         stats.envmap_face = env.face_size

@@ -34,10 +34,13 @@ class Gather:
         self._progs = {}
 
     def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False,
-              irradiance: bool = False, absent: tuple = (), directional: bool = False):
-        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional)
+              irradiance: bool = False, absent: tuple = (), directional: bool = False,
+              parts: bool = False):
+        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional, parts)
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
+            if parts:
+                defines["GATHER_PARTS"] = 1
             if directional:
                 defines["ASSET_DIRECTIONAL"] = 1
             if frames:
@@ -54,7 +57,7 @@ class Gather:
     def run(self, receivers, materials, output, first: int, count: int, m: int,
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
             lobe=None, lobe_buffers=None, irradiance: bool = False,
-            absent: tuple = ()) -> None:
+            absent: tuple = (), parts=None) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
@@ -65,12 +68,18 @@ class Gather:
         ``env`` the lobe directions read the cube map instead; app/pbgi/lobe.py).
         ``irradiance``: a white Lambertian BRDF for every receiver (E / pi; no lobes).
         ``absent``: BRDF features no material of the table uses (``absent_features``): a
-        variant without their code, compiled once per feature set."""
+        variant without their code, compiled once per feature set. ``parts``: a buffer of
+        gpu_layout.GATHER_PARTS records per tile pixel, filled too (the GATHER_PARTS variant:
+        the sums kept apart per BRDF factor, app/pbgi/gather_parts.py)."""
         if irradiance and lobe is not None:
             raise ValueError("an irradiance gather has no lobe micro-buffers")
+        if irradiance and parts is not None:
+            raise ValueError("an irradiance gather has no BRDF to split into parts")
         directional = env is None and bool(getattr(nodes, "has_directional", False))
         prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
-                          () if irradiance else tuple(absent), directional)
+                          () if irradiance else tuple(absent), directional, parts is not None)
+        if parts is not None:
+            parts.bind_to_storage_buffer(SSBO.PARTS)
         if lobe is not None:
             if env is None:
                 lobe_buffers.bind()

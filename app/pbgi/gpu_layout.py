@@ -46,6 +46,8 @@ SSBO = Units("SSBO binding points: layout(std430, binding = SSBO_X), bind_to_sto
                  "OUTPUT": (7, "the gather's output (GATHER_OUTPUT), one per tile pixel"),
                  "FRAMES": (8, "the gather's micro-buffer frame per batch receiver (FRAME), "
                                "FRAME_NORMALS"),
+                 "PARTS": (9, "the gather's radiance split by BRDF factor (GATHER_PARTS), one "
+                              "per tile pixel, GATHER_PARTS"),
              })
 TEXTURE = Units("texture units: layout(binding = TEX_X) uniform sampler, Texture.use(location)",
                 "TEX_", {
@@ -318,10 +320,25 @@ GATHER_OUTPUT = Record("GatherOutput", (
     Field("status", "float", "1: gathered; -1: the driver cut the gather loop short"),
 ), word="float", doc="the gather's output per tile pixel")
 
+GATHER_PARTS = Record("GatherParts", (
+    Field("diffuse", "vec3", "sum of L w x Burley's diffuse / pi; times (1 - metallic) base"),
+    Field("material", "uint", "the receiver's material id (row of the material table)",
+          stored_as="value"),
+    Field("sheen", "vec3", "sum of L w x F_H; times (1 - metallic) sheen colour"),
+    Pad(1),
+    Field("spec_f0", "vec3", "sum of L w x GGX D G (1 - F_H); times the specular F0"),
+    Pad(1),
+    Field("spec_one", "vec3", "sum of L w x GGX D G F_H; times 1"),
+    Pad(1),
+    Field("coat", "vec3", "sum of L w x the clearcoat lobe at clearcoat 1; times clearcoat"),
+    Pad(1),
+), word="float", doc="the gather's radiance before the factors a material edit may change "
+                     "(app/pbgi/gather_parts.py recombines it)")
+
 RECORDS = {r.name: r for r in (
     RECEIVER, MATERIAL, GBUFFER_VERTEX, CLASSIC_STATE, FINISH_STATE, PAIR_COUNTERS, PAIR, ITEM, HEAD, MIP_SPHERE,
     MIP_CONE, MIP_LINK, BSH_SPHERE, BSH_CONE, BSH_LINK, BSH_COLOR, MB_ENTRY, MB_DIRECTION,
-    MB_FLUX, MB_BANDS, SHARE_ROW, BLOCK_OF, FRAME, GATHER_OUTPUT)}
+    MB_FLUX, MB_BANDS, SHARE_ROW, BLOCK_OF, FRAME, GATHER_OUTPUT, GATHER_PARTS)}
 
 
 # -- generated GLSL -------------------------------------------------------------------------------
@@ -643,7 +660,8 @@ def frames_glsl() -> str:
 
 
 def gather_output_glsl() -> str:
-    """``gen/gather_output.glsl``: the gather's output, one record per tile pixel."""
+    """``gen/gather_output.glsl``: the gather's output, one record per tile pixel; with
+    GATHER_PARTS defined also its radiance in parts (GATHER_PARTS)."""
     return f"""{_banner("gather_output_glsl", "GATHER_OUTPUT")}
 // {GATHER_OUTPUT.doc}, one vec4 per tile pixel (row-major, row 0 at the top):
 {GATHER_OUTPUT.glsl_comment()}
@@ -654,6 +672,19 @@ layout(std430, binding = SSBO_OUTPUT) buffer Output {{ vec4 out_rgba[]; }};
 {GATHER_OUTPUT.glsl_struct()}
 {GATHER_OUTPUT.glsl_pack("gather_output_pack")}
 void gather_output_store(uint pixel, GatherOutput v) {{ out_rgba[pixel] = gather_output_pack(v); }}
+#ifdef GATHER_PARTS
+// {GATHER_PARTS.doc}, {GATHER_PARTS.slots} vec4s per tile pixel:
+{GATHER_PARTS.glsl_comment()}
+layout(std430, binding = SSBO_PARTS) buffer Parts {{ vec4 parts_rgba[]; }};
+{GATHER_PARTS.glsl_struct()}
+{GATHER_PARTS.glsl_pack("gather_parts_pack")}
+void gather_parts_store(uint pixel, GatherParts v) {{
+    vec4 {", ".join(f"s{k}" for k in range(GATHER_PARTS.slots))};
+    gather_parts_pack(v, {", ".join(f"s{k}" for k in range(GATHER_PARTS.slots))});
+    uint b = {GATHER_PARTS.slots}u * pixel;
+{chr(10).join(f"    parts_rgba[b + {k}u] = s{k};" for k in range(GATHER_PARTS.slots))}
+}}
+#endif
 #endif
 """
 

@@ -93,6 +93,7 @@ class Frame:
     absent_features: tuple = ()       # BRDF features no material uses (gather.absent_features):
                                       # the gather's variant leaves their code out
     pass_index: int = 0               # the render's pass (Hybrid moves its block grid per pass)
+    parts: Any = None                 # SSBO of GATHER_PARTS per tile pixel for the gather, or None
     groups: tuple = ()                # ((start, count, m), ...): consecutive runs of receivers
                                       # with their own micro-buffer size (renderer: lobe-only
                                       # receivers); empty = all ``count`` at ``m``
@@ -324,7 +325,8 @@ class MicroBufferMode(RenderMode):
             frame.gather.run(frame.receivers, frame.materials, frame.output, first, count, m,
                              frame.camera_rel, mb=held.buffers, nodes=frame.nodes, frames=frames,
                              lobe=frame.lobe, lobe_buffers=frame.lobe_buffers,
-                             irradiance=frame.irradiance, absent=frame.absent_features)
+                             irradiance=frame.irradiance, absent=frame.absent_features,
+                             parts=frame.parts)
             ctx.finish()
             t_gather += time.perf_counter() - tg
             t_cut += tl - tc

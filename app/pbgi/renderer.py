@@ -33,7 +33,7 @@ import numpy as np
 
 from app.errors import ScanlightError
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
-from app.pbgi.gpu_layout import GATHER_OUTPUT, RECEIVER
+from app.pbgi.gpu_layout import GATHER_OUTPUT, GATHER_PARTS, RECEIVER
 from app.pbgi.hierarchy import recolor
 from app.pbgi.microbuffer import MIN_SIZE, MicroBuffers, entries
 from app.pbgi.lobe import (LobeBuffers, LobeSettings, lobe_only_receivers, needs_lobe,
@@ -50,6 +50,7 @@ __all__ = ["Relighter", "RenderParams", "RenderResult", "RenderStats", "recolor"
 class RenderResult:
     image: np.ndarray                 # (h, w, 4) float32 linear radiance, alpha = coverage
     stats: RenderStats
+    parts: np.ndarray | None = None   # (h, w) GATHER_PARTS records when asked (render(parts=))
 
 
 def _fingerprint(*arrays) -> str:
@@ -347,11 +348,15 @@ class Relighter:
         self._held.key = None
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
-               tile=None, pass_index: int = 0, pixels=None) -> RenderResult:
+               tile=None, pass_index: int = 0, pixels=None,
+               parts: bool = False) -> RenderResult:
         """Relight the asset seen by ``camera`` (``tile``: a part of the image).
         ``pass_index`` moves each pixel's sample inside the pixel (gbuffer.pass_jitter; pass 0
         is the centre) and re-jitters the lobe micro-buffers (app/pbgi/lobe.py): the mean of
-        several passes is anti-aliased and averages the lobes' noise (``render_passes``)."""
+        several passes is anti-aliased and averages the lobes' noise (``render_passes``).
+        ``parts``: also return each pixel's gather split by BRDF factor (``RenderResult.parts``,
+        app/pbgi/gather_parts.py), which a later edit of base colour, metallic, specular, sheen
+        or clearcoat amount recombines instead of gathering again (the viewer)."""
         params = (params or RenderParams()).validated()
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
@@ -432,12 +437,16 @@ class Relighter:
         image = np.zeros((h, w, 4), dtype=np.float32)
         if n == 0:
             stats.ms, stats.mb = (t1 - t0) * 1e3, gb["bytes"] / MB
-            return RenderResult(image, stats)
+            return RenderResult(image, stats, GATHER_PARTS.zeros(w * h).reshape(h, w)
+                                if parts else None)
 
         bufs = {"receivers": ctx.buffer(rec.tobytes()),
                 "materials": ctx.buffer(material_table(materials).tobytes()),
                 "output": ctx.buffer(reserve=GATHER_OUTPUT.nbytes * w * h)}
         bufs["output"].clear()
+        if parts:
+            bufs["parts"] = ctx.buffer(reserve=GATHER_PARTS.nbytes * w * h)
+            bufs["parts"].clear()
         extra = sum(b.size for b in bufs.values())
         # everything the cut depends on: the micro-buffers hold this render's cut if it matches
         cut_key = (self._cloud_version, self._asset_version, params.mode, m, tile,
@@ -463,12 +472,14 @@ class Relighter:
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
                           leaf_radius=self.leaf_radius if lobe is not None else 0.0,
                           absent_features=stats.absent_features, groups=groups,
-                          pass_index=int(pass_index))
+                          pass_index=int(pass_index), parts=bufs.get("parts"))
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes
             t2 = time.perf_counter()
             out = GATHER_OUTPUT.view(bufs["output"].read()).reshape(h, w)
+            split = (GATHER_PARTS.view(bytearray(bufs["parts"].read())).reshape(h, w)
+                     if parts else None)
         finally:
             for b in bufs.values():
                 b.release()
@@ -484,7 +495,11 @@ class Relighter:
                            and stats.lobe_incomplete == 0
                            and stats.nonfinite_pixels == 0)
         stats.ms, stats.mb = (t2 - t0) * 1e3, max(extra, gb["bytes"]) / MB
-        return RenderResult(image, stats)
+        if split is not None and bad.any():
+            from app.pbgi.gather_parts import PART_NAMES
+            for name in PART_NAMES:
+                split[name][bad.any(axis=-1)] = 0.0
+        return RenderResult(image, stats, split)
 
     @property
     def leaf_radius(self) -> float:

@@ -142,16 +142,24 @@ PrincipledPrepared principled_prepare(PrincipledParams p, vec3 V, vec3 N, vec3 X
     return q;
 }
 
-// The BRDF's three lobes apart (the lobe micro-buffer gathers the specular ones through its own
-// directions, app/pbgi/lobe.py): ``base`` = diffuse, subsurface and sheen (wide lobes), ``spec`` =
-// the GGX specular lobe, ``coat`` = the clearcoat lobe; f = base + spec + coat.
-void principled_lobes_prepared(PrincipledPrepared q, vec3 L, out vec3 base, out vec3 spec,
-                               out vec3 coat) {
+// The BRDF's scalar factors for one direction, before the material's colours multiply them:
+//   base = (diffuse base + fh sheen_w) (1 - metallic), spec = spec mix(spec0, 1, fh),
+//   coat = clearcoat coat
+// (principled_lobes_prepared). The gather's GATHER_PARTS variant sums L w times each factor
+// apart, so that a new base colour, metallic, specular, sheen or clearcoat amount is a
+// recombination of the sums (app/pbgi/gather_parts.py), not a new gather.
+struct PrincipledParts {
+    float diffuse;   // Burley's diffuse (subsurface blended in) / pi
+    float fh;        // Schlick's weight at l.h: the sheen and the specular Fresnel
+    float spec;      // GGX D G (the 1 / (4 n.l n.v) folded in), before the Fresnel
+    float coat;      // the clearcoat lobe at clearcoat 1
+};
+PrincipledParts principled_parts_prepared(PrincipledPrepared q, vec3 L) {
+    PrincipledParts r = PrincipledParts(0.0, 0.0, 0.0, 0.0);
     vec3 N = q.N, V = q.V;
     float n_dot_l = dot(N, L);
     float n_dot_v = q.n_dot_v;
-    base = spec = coat = vec3(0.0);
-    if (n_dot_l <= 0.0 || n_dot_v <= 0.0) return;
+    if (n_dot_l <= 0.0 || n_dot_v <= 0.0) return r;
     vec3 H = normalize(L + V);
     float n_dot_h = dot(N, H);
     float l_dot_h = dot(L, H);
@@ -176,23 +184,32 @@ void principled_lobes_prepared(PrincipledPrepared q, vec3 L, out vec3 base, out 
     float ds = principled_gtr2_aniso(n_dot_h, dot(H, q.X), dot(H, q.Y), q.ax, q.ay);
     float gs = principled_smith_ggx_aniso(n_dot_l, dot(L, q.X), dot(L, q.Y), q.ax, q.ay) * q.gs_v;
 #endif
-    float fh = schlick_weight(l_dot_h);
-    vec3 fs = mix(q.spec0, vec3(1.0), fh);
-#ifdef PRINCIPLED_NO_SHEEN
-    base = INV_PI * diffuse * q.base * (1.0 - q.metallic);
-#else
-    base = (INV_PI * diffuse * q.base + fh * q.sheen_w) * (1.0 - q.metallic);
-#endif
-    spec = gs * ds * fs;
+    r.diffuse = INV_PI * diffuse;
+    r.fh = schlick_weight(l_dot_h);
+    r.spec = gs * ds;
 #ifndef PRINCIPLED_NO_CLEARCOAT
     vec3 nxh = cross(N, H);
     float dr = principled_gtr1(n_dot_h, dot(nxh, nxh), q.cc_alpha);
-    float fr = mix(0.04, 1.0, fh);
+    float fr = mix(0.04, 1.0, r.fh);
     float gr = principled_smith_ggx(n_dot_l, 0.25) * q.gr_v;
-    coat = vec3(0.25 * q.clearcoat * gr * fr * dr);
+    r.coat = 0.25 * gr * fr * dr;
 #endif
+    return r;
 }
-
+// The BRDF's three lobes apart (the lobe micro-buffer gathers the specular ones through its own
+// directions, app/pbgi/lobe.py): ``base`` = diffuse, subsurface and sheen (wide lobes), ``spec`` =
+// the GGX specular lobe, ``coat`` = the clearcoat lobe; f = base + spec + coat.
+void principled_lobes_prepared(PrincipledPrepared q, vec3 L, out vec3 base, out vec3 spec,
+                               out vec3 coat) {
+    PrincipledParts r = principled_parts_prepared(q, L);
+#ifdef PRINCIPLED_NO_SHEEN
+    base = r.diffuse * q.base * (1.0 - q.metallic);
+#else
+    base = (r.diffuse * q.base + r.fh * q.sheen_w) * (1.0 - q.metallic);
+#endif
+    spec = r.spec * mix(q.spec0, vec3(1.0), r.fh);
+    coat = vec3(q.clearcoat * r.coat);
+}
 vec3 principled_brdf_prepared(PrincipledPrepared q, vec3 L) {
     vec3 base, spec, coat;
     principled_lobes_prepared(q, L, base, spec, coat);

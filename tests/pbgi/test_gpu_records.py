@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT_BINDING = 10          # the test shader's output buffer
 MODES = {"receiver": 0, "principled": 1, "classic_state": 2, "finish_state": 3, "counters": 4,
          "streams": 5, "streams_read": 6, "mip": 7, "microbuffer": 8, "share_rows": 9,
-         "block_of": 10, "frames": 11, "gather_output": 12, "node_textures": 13}
+         "block_of": 10, "frames": 11, "gather_output": 12, "node_textures": 13,
+         "gather_parts": 14}
 
 
 def decoded_words(rec: Record, records: np.ndarray) -> np.ndarray:
@@ -289,6 +290,26 @@ def test_gather_output_is_read_through_its_record(ctx, progs):
     out.release()
 
 
+def test_gather_parts_are_read_through_their_record(ctx, progs):
+    n = 99
+    out = ctx.buffer(reserve=G.GATHER_PARTS.nbytes * n)
+    out.write(np.full(G.GATHER_PARTS.words * n, 7.0, np.float32).tobytes())   # padding -> 0
+    out.bind_to_storage_buffer(G.SSBO.PARTS)
+    run(ctx, progs("gather_parts"), n, 0)
+    got = G.GATHER_PARTS.view(out.read())
+    i = np.arange(n, dtype=np.float32)
+    np.testing.assert_array_equal(got["diffuse"], np.stack([i, i + 0.25, -i], 1))
+    np.testing.assert_array_equal(got["material"], np.arange(n) % 7)
+    np.testing.assert_array_equal(got["sheen"], np.repeat(2 * i[:, None], 3, 1))
+    np.testing.assert_array_equal(got["spec_f0"], np.full((n, 3), 3.0))
+    np.testing.assert_array_equal(got["spec_one"], np.stack([-np.ones(n), i, np.full(n, 0.5)],
+                                                            1))
+    np.testing.assert_array_equal(got["coat"], np.repeat((i * i)[:, None], 3, 1))
+    flat = G.GATHER_PARTS.flat(got)
+    assert not flat[:, [7, 11, 15, 19]].any()
+    out.release()
+
+
 def test_node_textures_hold_the_node_records(ctx, progs):
     """bsh_textures.glsl packs the node records into the BSH_* texels (read back here through
     their dtypes) and tnode_* decodes the same texels."""
@@ -415,6 +436,7 @@ def test_every_record_is_checked_here():
     checked = {G.RECEIVER, G.MATERIAL, G.GBUFFER_VERTEX, G.CLASSIC_STATE, G.FINISH_STATE, G.PAIR_COUNTERS, G.PAIR,
                G.ITEM, G.HEAD, G.MIP_LINK, G.MIP_SPHERE, G.MIP_CONE, G.MB_ENTRY, G.MB_DIRECTION,
                G.MB_FLUX, G.MB_BANDS, G.SHARE_ROW, G.BLOCK_OF, G.FRAME, G.GATHER_OUTPUT,
+               G.GATHER_PARTS,
                G.BSH_SPHERE, G.BSH_CONE, G.BSH_LINK, G.BSH_COLOR}
     assert set(G.RECORDS.values()) == checked
 

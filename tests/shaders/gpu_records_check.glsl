@@ -63,6 +63,9 @@ uniform uint u_side;           // M + 1: the index texture's side
 #include "gen/gather_output.glsl"
 #elif MODE == 13
 #include "lib/bsh_textures.glsl"
+#elif MODE == 14
+#define GATHER_PARTS 1
+#include "gen/gather_output.glsl"
 #endif
 
 void main() {
@@ -191,6 +194,10 @@ void main() {
 #elif MODE == 12
     gather_output_store(i, GatherOutput(vec3(float(i), float(i) + 0.5, -float(i)),
                                         (i & 1u) == 0u ? 1.0 : -1.0));
+#elif MODE == 14
+    float f = float(i);
+    gather_parts_store(i, GatherParts(vec3(f, f + 0.25, -f), i % 7u, vec3(2.0 * f), vec3(3.0),
+                                      vec3(-1.0, f, 0.5), vec3(f * f)));
 #elif MODE == 13
     BshSphere s = tnode_sphere(i);
     put(s.center);

@@ -9,9 +9,11 @@ frame at the viewer's frame budget, the way the window's loop does. Per quality 
   drag does), then idle frames until the refinement reaches 100% (every idle pass included);
   the time is from the camera's release to that frame;
 * one row per BRDF slider: the material changed as the BRDF panel changes it
-  (``Session.set_material``), then idle frames until converged. Base colour, metallic and the
-  other factors of the gather reuse the held micro-buffers (only the gather runs again); the
-  roughness of a glossy material needs new lobe buffers.
+  (``Session.set_material``), then idle frames until converged. Base colour, metallic,
+  specular, sheen and the clearcoat amount recombine the layer's gather in parts
+  (app/pbgi/gather_parts.py) when the micro-buffers it was gathered with serve the new material
+  too; the rest (roughness, a clearcoat turned on, ...) gather again. "recombined" says which,
+  with the engine's reason when not.
 
 "first ms" is the first frame after the change (what the user waits for before anything moves);
 "frames" the frames to convergence. The machine is shared: compare rows of one run only.
@@ -31,10 +33,10 @@ PRESETS = ("preview", "balanced", "final")
 SLIDERS = (
     ("base_color", (0.3, 0.6, 0.9)),
     ("metallic", 1.0),
-    ("roughness", 0.35),
     ("specular", 0.8),
-    ("clearcoat", 0.5),
     ("sheen", 0.5),
+    ("roughness", 0.35),
+    ("clearcoat", 0.5),
 )
 
 
@@ -62,7 +64,9 @@ def add_arguments(parser) -> None:
 
 
 def converge(engine, timeout_s: float, interacting_first: bool = False) -> dict:
-    """Frames until the GI refinement is done; the first frame ``interacting`` when asked."""
+    """Frames until the GI refinement is done; the first frame ``interacting`` when asked. Then
+    on until the scan shows the asset's shadow and bounce for the change (``shadow_s``, from the
+    same start; NaN when not within the timeout)."""
     t0 = time.perf_counter()
     first = engine.frame(interacting=interacting_first)
     first_ms = first["ms"]
@@ -73,11 +77,18 @@ def converge(engine, timeout_s: float, interacting_first: bool = False) -> dict:
     while engine.gi.refining:
         if time.perf_counter() - t0 > timeout_s:
             return {"s": float("nan"), "frames": frames, "first_ms": first_ms,
-                    "converged": False}
+                    "converged": False, "shadow_s": float("nan")}
         engine.frame()
         frames += 1
-    return {"s": time.perf_counter() - t0, "frames": frames, "first_ms": first_ms,
-            "converged": True}
+    out = {"s": time.perf_counter() - t0, "frames": frames, "first_ms": first_ms,
+           "converged": True, "shadow_s": float("nan")}
+    settled = getattr(engine, "differential_settled", lambda: True)
+    while time.perf_counter() - t0 <= timeout_s:
+        if settled():
+            out["shadow_s"] = time.perf_counter() - t0
+            break
+        engine.frame()
+    return out
 
 
 def run(args) -> list[dict]:
@@ -113,11 +124,13 @@ def run(args) -> list[dict]:
             res = converge(engine, args.timeout, interacting_first=True)
             records.append(record("viewer", {**case, "change": "orbit"}, res))
             for name in names:
+                if not (res["converged"] and res["shadow_s"] == res["shadow_s"]):
+                    engine.finish_refinement()      # each change from a converged picture
                 session.set_material(0, {name: table[name]})
                 res = converge(engine, args.timeout)
-                res["reused_microbuffers"] = bool(getattr(engine.gi_stats, "reused_microbuffers",
-                                                          False))
-                records.append(record("viewer", {**case, "change": name}, res))
+                res["recombined"] = engine.material_edit == "recombined"
+                records.append(record("viewer", {**case, "change": name,
+                                                 "edit": str(engine.material_edit)}, res))
             log.info("%s: first picture %.1f s", preset, start["s"])
         finally:
             engine.release()
@@ -126,15 +139,17 @@ def run(args) -> list[dict]:
 
 
 def markdown(records: list[dict]) -> str:
-    lines = ["| preset | change | converged s | first frame ms | frames | gather only |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| preset | change | converged s | with the scan's shadow s | first frame ms | "
+             "frames | recombined |", "|---|---|---|---|---|---|---|"]
     for rec in records:
         c, m = rec["case"], rec["metrics"]
         s = f"{m['s']:.2f}" if m["converged"] else "not converged"
-        reuse = "" if "reused_microbuffers" not in m else ("yes" if m["reused_microbuffers"]
-                                                           else "no")
-        lines.append(f"| {c['preset']} | {c['change']} | {s} | {m['first_ms']:.0f} | "
-                     f"{m['frames']} | {reuse} |")
+        reuse = "" if "recombined" not in m else (
+            "yes" if m["recombined"] else f"no ({c.get('edit', '')})")
+        shadow = m.get("shadow_s", float("nan"))
+        shadow = f"{shadow:.2f}" if shadow == shadow else "-"
+        lines.append(f"| {c['preset']} | {c['change']} | {s} | {shadow} | {m['first_ms']:.0f} | "
+                     f"{m['frames']:.0f} | {reuse} |")
     return "\n".join(lines)
 
 

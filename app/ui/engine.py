@@ -18,7 +18,9 @@ connected in ``_connect_handlers`` (``app.settings.ChangeHandlers``), in this or
     asset.transform                re-place the mesh (no reload); set_asset; its G-buffer
     view.fov_y                     the navigator's field of view
     camera                         the navigator follows the session's camera
-    materials                      re-gather only (uniforms)
+    materials                      recombine the layer's gather in parts when the edit allows
+                                   (app/pbgi/gather_parts.py: base colour, metallic, specular,
+                                   sheen, clearcoat amount); else re-gather (uniforms)
     files.hdri, light.source, light.hdri_rotation, compare.enabled, compare.b
                                    which HDRI lights A and B (Relighter.set_hdri; the panorama
                                    replaces the room behind that side); re-gather
@@ -130,6 +132,10 @@ class ViewerEngine:
         self._hdri_failed = None        # the path that failed to load (reported once)
         self.hdri_a = self.hdri_b = None    # the HDRI lighting each side, None: the scan
         self.gi_stats: RenderStats | None = None    # the last gather that had receivers
+        self._gathered_materials = None     # the materials A's layer was gathered with
+        # the last material edit: "recombined", or why it was gathered again
+        self.material_edit: str | None = None
+        self._recoloured = False        # this frame recombined the layer: present it first
         self.gi_failed = False
         self.frame_ms: list[float] = []
         self.timings: dict = {}
@@ -314,7 +320,7 @@ class ViewerEngine:
         c.connect(("files.asset", "asset.transform"), self._on_asset)
         c.connect("view.fov_y", self._on_fov)
         c.connect("camera", self._on_camera)
-        c.connect("materials", self._redo_gi)
+        c.connect("materials", self._on_materials)
         c.connect(("files.hdri", "light.source", "light.hdri_rotation", "compare.enabled",
                    "compare.b"), self._on_light)
         c.connect(RECOMPOSITE_KEYS, self._redo_composite)
@@ -480,6 +486,39 @@ class ViewerEngine:
     def _redo_gi(self, keys) -> None:
         self._gi_dirty = True
 
+    def _on_materials(self, keys) -> None:
+        """A material edit: the layer's gather in parts recombined with the new materials where
+        that is what a new gather would give (app/pbgi/gather_parts.py), else a new gather."""
+        why = self._recombine_materials()
+        self.material_edit = "recombined" if why is None else why
+        if why is not None:
+            self._redo_gi(keys)
+
+    def _recombine_materials(self) -> str | None:
+        """Recolour A's layer for the session's materials; None when done, else why not."""
+        from app.pbgi.gather_parts import changed, recombinable, recombine
+        old, r = self._gathered_materials, self.relighter
+        if self._gi_dirty or old is None or self.mesh is None:
+            return "the picture is gathered anew anyway"
+        if not self.renderer_available or self.gi_failed:
+            return "no renderer"
+        if self._b_active:
+            return "the A/B compare gathers both sides again"
+        params = RenderParams.from_settings(self.session.settings)
+        try:
+            old, new = r.materials_for(old), r.materials_for(self.session.materials)
+        except ScanlightError as exc:
+            return str(exc)
+        why = recombinable(old, new, params, r.walks_asset(params))
+        if why is not None:
+            return why
+        edited = [i for i, (a, b) in enumerate(zip(old, new)) if changed(a, b)]
+        if edited and not self.gi.recolour(edited, lambda rec, i: recombine(rec, new[i])):
+            return "the picture holds no parts, or a pixel mixes an edited material with another"
+        self._gathered_materials = list(self.session.materials)
+        self._asset_dirty = self._recoloured = True
+        return None
+
     def _redo_composite(self, keys) -> None:
         self._composite_dirty = True
 
@@ -543,9 +582,12 @@ class ViewerEngine:
                 info["gi"] = True
             self.timings["gi_frame_ms"] = (time.perf_counter() - t) * 1e3
             self._compare_metrics()
-        elif not interacting:
+        elif not interacting and not self._recoloured:
+            # (a recoloured picture is shown first: the new shadow's first step, the asset's
+            # bounce for the new albedo, can take a whole budget)
             self.reset_gl_state()
             info["differential"] = self._advance_differential(budget)
+        self._recoloured = False
         if self._room_dirty:                # the differential changed the splats' colours
             self.view.draw_room(cam, self.session.settings["view.splat_scale"],
                                 self.session.settings["view.eye_dome"])
@@ -570,6 +612,8 @@ class ViewerEngine:
         s = self.session.settings
         self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
                         s["pbgi.idle_passes"])
+        self._gathered_materials = (None if self.session.materials is None
+                                    else list(self.session.materials))
         self._asset_dirty = True
         self.compare_metrics = None
         self._b_active = self.compare_on and self.renderer_available and self._sync_b()
@@ -687,6 +731,16 @@ class ViewerEngine:
             self.report_failure("the asset's shadow on the scan", exc)
         return False
 
+    def differential_settled(self) -> bool:
+        """Does the scan show the asset's shadow and bounce for the current settings and
+        materials (or is the differential off)? (The benchmark's end of a change.)"""
+        params = self._differential_params()
+        if params is None:
+            return True
+        key = self.guard("the asset's shadow", self.relighter.differential_key,
+                         self.session.materials, params)
+        return key is None or key == self._diff_shown_key
+
     def _show_differential(self, diff, key=None) -> bool:
         """Put ``diff`` on the splats (None: the plain colours). True: the colours changed."""
         if diff is None and self._diff_shown_key is None:
@@ -707,8 +761,10 @@ class ViewerEngine:
         self._room_dirty = True
         return True
 
-    def _render_gi(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
-        return self._gather(self.relighter, self.session.settings, camera, tile, pass_index)
+    def _render_gi(self, camera: Camera, tile, pass_index: int = 0):
+        """A's tile: texels and the gather in parts (``_on_materials`` recombines them)."""
+        return self._gather(self.relighter, self.session.settings, camera, tile, pass_index,
+                            parts=True)
 
     def _render_gi_b(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
         """B's layer: B's settings (app/ui/compare.py), B's renderer; its stats stay B's."""
@@ -716,14 +772,14 @@ class ViewerEngine:
                             pass_index, keep_stats=False)
 
     def _gather(self, relighter, s, camera: Camera, tile, pass_index: int = 0,
-                keep_stats: bool = True) -> np.ndarray:
+                keep_stats: bool = True, parts: bool = False):
         params = RenderParams.from_settings(s)
         if (self._interacting and params.asset_occlusion and relighter is not None
                 and not relighter.asset_scene_ready(self.session.materials, params)):
             params = replace(params, asset_occlusion=False)   # built after the drag
         try:
             res = relighter.render(camera, self.session.materials, params, tile=tile,
-                                   pass_index=pass_index)
+                                   pass_index=pass_index, **({"parts": True} if parts else {}))
         except Exception as exc:
             self.gi_failed = True
             self.report_failure("relighting", exc)
@@ -746,7 +802,10 @@ class ViewerEngine:
         if not res.stats.completed:
             self.error("relighting: a render pass did not complete (GPU loop budget); the image "
                        "may be missing light", "warning")
-        return img
+        split = getattr(res, "parts", None) if parts else None
+        if split is not None and split.shape[:2] != img.shape[:2]:
+            split = split[y:y + h, x:x + w]
+        return img if split is None else (img, split)
 
     # -- output ----------------------------------------------------------------------------------
     def finish_refinement(self) -> None:

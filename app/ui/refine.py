@@ -43,9 +43,18 @@ at least every budget or so, instead of after a run that overshot it several tim
    mirror images are anti-aliased and the lobes' noise averages out. The compositor's
    silhouette comes from its own full-resolution G-buffer, so the mean is kept unpremultiplied.
 
+4. *Recolouring* (``recolour``): the render function may also return each texel's gather split
+   by BRDF factor (app/pbgi/gather_parts.py: GATHER_PARTS records), which the layer keeps -
+   summed over the passes that hit, with the set of materials each texel's passes saw. An edit
+   of base colour, metallic, specular, sheen or clearcoat amount is then a recombination of
+   those sums, done for the preview and every texel refined so far, and the refinement goes on
+   where it was (its further tiles gather with the new material): the picture is as converged
+   after the edit as before it. A texel whose passes saw the edited material and another one
+   (a boundary between two materials) cannot be split again: the caller gathers anew.
+
 The render function is injected (``render(camera, tile, pass_index) -> (h, w, 4) float32``
-GI_TEXEL texels: radiance, and 1 on the asset, 0 off it): the viewer passes the real PBGI
-renderer; tests check
+GI_TEXEL texels: radiance, and 1 on the asset, 0 off it; or a pair of those texels and the
+tile's (h, w) GATHER_PARTS records): the viewer passes the real PBGI renderer; tests check
 the scheduling arithmetic with a fake clock (exact timings) and the tiling with the real
 renderer.
 """
@@ -58,6 +67,7 @@ import time
 import numpy as np
 
 from app.camera import Camera
+from app.pbgi.gather_parts import PART_WORDS, part_records, part_words
 from app.pbgi.upsample import scaled_camera
 from app.render.gpu_layout import GI_PENDING, GI_TEXEL
 
@@ -67,11 +77,25 @@ MIN_PREVIEW_SCALE = 1 / 16
 FIRST_PREVIEW_SCALE = 1 / 16  # before any cost per pixel is known: the cheapest
 ETA_MIN_FRACTION, ETA_MIN_S = 0.05, 0.5   # data needed before the time left is said
 ETA_SMOOTHING = 0.3       # weight of each frame's estimate of the total refinement time
+MAX_MATERIAL_BIT = 63     # material ids from here on share one bit: never recoloured
 
 
 def gi_image(height: int, width: int) -> np.ndarray:
     """A zeroed (height, width, 4) float32 image of GI_TEXEL texels (status 0: background)."""
     return GI_TEXEL.flat(GI_TEXEL.zeros(height * width)).reshape(height, width, GI_TEXEL.words)
+
+
+def material_bits(ids: np.ndarray, hit: np.ndarray) -> np.ndarray:
+    """One bit per material id (ids from MAX_MATERIAL_BIT on share the last), 0 where no hit."""
+    bits = np.left_shift(np.int64(1), np.minimum(ids, MAX_MATERIAL_BIT).astype(np.int64))
+    return np.where(hit, bits, 0).astype(np.int64)
+
+
+def _split(result):
+    """A render function's result as (texels, GATHER_PARTS records or None)."""
+    if isinstance(result, tuple):
+        return result
+    return result, None
 
 
 def time_left_words(seconds: float | None) -> str:
@@ -161,6 +185,13 @@ class ProgressiveGI:
         self.pass_index = 0                    # the pass the tiles are running
         self._sum: np.ndarray | None = None    # radiance summed over the passes that hit
         self._hits: np.ndarray | None = None   # passes that hit the asset, per texel
+        # the gather in parts (see recolour), over ``rect``: GATHER_PARTS words summed over the
+        # passes that hit, those passes, and the bits of the materials they saw; the preview's
+        self._parts: np.ndarray | None = None
+        self._parts_hits: np.ndarray | None = None
+        self._parts_mats: np.ndarray | None = None
+        self._preview_parts: np.ndarray | None = None
+        self._preview_mats: np.ndarray | None = None
 
     # -- state the UI shows ----------------------------------------------------------------------
     @property
@@ -214,6 +245,13 @@ class ProgressiveGI:
         ``passes`` jittered passes of tiles."""
         self.passes, self.pass_index = max(int(passes), 1), 0
         self._sum = self._hits = None
+        self._parts = self._parts_hits = self._parts_mats = None
+        self._preview_parts = self._preview_mats = None
+        if rect is not None:
+            rh, rw = rect[3], rect[2]
+            self._parts = np.zeros((rh, rw, PART_WORDS), np.float32)
+            self._parts_hits = np.zeros((rh, rw), np.float32)
+            self._parts_mats = np.zeros((rh, rw), np.int64)
         if preview_scale != self.preview_scale:
             self.preview_scale = self.effective_scale = float(preview_scale)
         same_size = self.full is not None and self.full.shape[:2] == (camera.height, camera.width)
@@ -320,11 +358,19 @@ class ProgressiveGI:
         x1 = min(int(math.ceil((rect[0] + rect[2]) * sx)) + 1, small.width)
         y1 = min(int(math.ceil((rect[1] + rect[3]) * sy)) + 1, small.height)
         t0 = self.clock()
-        lo = self.render(small, (x0, y0, x1 - x0, y1 - y0), 0)
+        lo, parts = _split(self.render(small, (x0, y0, x1 - x0, y1 - y0), 0))
         ms = (self.clock() - t0) * 1e3
         self.last_preview_ms = ms
         self.preview = gi_image(small.height, small.width)
         self.preview[y0:y1, x0:x1] = lo
+        self._preview_parts = self._preview_mats = None
+        if parts is not None:
+            hit = lo[..., GI_TEXEL.index("status")] > 0.5
+            self._preview_parts = np.zeros((small.height, small.width, PART_WORDS), np.float32)
+            self._preview_parts[y0:y1, x0:x1] = part_words(parts)
+            self._preview_mats = np.zeros((small.height, small.width), np.int64)
+            self._preview_mats[y0:y1, x0:x1] = material_bits(
+                np.rint(parts["material"]).astype(np.int64), hit)
         self.preview_camera = small
         self.shown_scale = s
         self.preview_dirty = True
@@ -369,8 +415,9 @@ class ProgressiveGI:
         w = run[-1][0] + run[-1][2] - x0
         h = run[0][3]
         t0 = self.clock()
-        img = self.render(self.camera, (x0, y0, w, h), self.pass_index)
+        img, parts = _split(self.render(self.camera, (x0, y0, w, h), self.pass_index))
         self._learn((self.clock() - t0) * 1e3, img)
+        self._keep_parts(img, parts, x0, y0)
         if self.pass_index == 0:
             self.full[y0:y0 + h, x0:x0 + w] = img
         else:                            # the mean over the passes that saw the asset
@@ -389,6 +436,79 @@ class ProgressiveGI:
         if not band:
             self._bands.pop(0)
         self._cells_done += len(run)
+
+    # -- recolouring (see the module docstring) ---------------------------------------------------
+    def _keep_parts(self, img: np.ndarray, parts, x0: int, y0: int) -> None:
+        """Add a tile's parts to the layer's sums (the first pass replaces them); without parts
+        the layer can no longer be recoloured."""
+        if self._parts is None:
+            return
+        if parts is None:
+            self._parts = self._parts_hits = self._parts_mats = None
+            return
+        h, w = img.shape[:2]
+        rx, ry = x0 - self.rect[0], y0 - self.rect[1]
+        hit = img[..., GI_TEXEL.index("status")] > 0.5
+        words = part_words(parts)
+        bits = material_bits(np.rint(parts["material"]).astype(np.int64), hit)
+        sums = self._parts[ry:ry + h, rx:rx + w]
+        hits = self._parts_hits[ry:ry + h, rx:rx + w]
+        mats = self._parts_mats[ry:ry + h, rx:rx + w]
+        if self.pass_index == 0:
+            sums[:] = words * hit[..., None]
+            hits[:] = hit
+            mats[:] = bits
+        else:
+            sums += words * hit[..., None]
+            hits += hit
+            mats |= bits
+
+    @property
+    def recolourable(self) -> bool:
+        """Does the layer hold its gather in parts (every render so far returned them)?"""
+        return self._parts is not None and not self._preview_pending and (
+            self._preview_mats is not None)
+
+    def recolour(self, changed, radiance) -> bool:
+        """Re-light the preview and every texel refined so far after an edit of the materials
+        ``changed`` (ids) that recombining the parts can follow: ``radiance(records, id)`` gives
+        the (n, 3) radiance of n GATHER_PARTS records of material ``id``. The refinement goes
+        on where it was. False (nothing touched) when the layer holds no parts or a texel's
+        passes saw a changed material and another one: then gather again."""
+        if not self.recolourable:
+            return False
+        changed = {int(c) for c in changed}
+        if any(c >= MAX_MATERIAL_BIT for c in changed):
+            return False
+        mask = np.int64(sum(1 << c for c in changed))
+        for mats in (self._parts_mats, self._preview_mats):
+            touched = (mats & mask) != 0
+            if (touched & ((mats & ~mask) != 0)).any():
+                return False              # a boundary with another material
+            if (touched & (np.bitwise_and(mats, mats - 1) != 0)).any():
+                return False              # two changed materials in one texel
+        status = GI_TEXEL.index("status")
+        for c in changed:
+            bit = np.int64(1 << c)
+            # the texels refined so far (the mean over their passes)
+            sel = self._parts_mats == bit
+            if sel.any():
+                hits = self._parts_hits[sel]
+                mean = self._parts[sel] / hits[:, None]
+                rad = radiance(part_records(mean), c)
+                x, y, w, h = self.rect
+                region = self.full[y:y + h, x:x + w]
+                region[..., :3][sel] = rad
+                region[..., status][sel] = 1.0
+                if self._sum is not None:
+                    self._sum[sel] = rad * hits[:, None]
+            sel = self._preview_mats == bit
+            if sel.any():
+                rad = radiance(part_records(self._preview_parts[sel]), c)
+                self.preview[..., :3][sel] = rad
+        self.preview_dirty = True
+        self.dirty_rects.append(tuple(self.rect))
+        return True
 
     def take_dirty(self) -> tuple[bool, bool, list[tuple[int, int, int, int]]]:
         """(preview changed, full image reset, rectangles of ``full`` written since)."""

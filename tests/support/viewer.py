@@ -39,8 +39,8 @@ def spy_renders(monkeypatch) -> list[RenderCall]:
     real = Relighter.render
     calls: list[RenderCall] = []
 
-    def render(self, camera, materials=None, params=None, tile=None, pass_index=0):
-        res = real(self, camera, materials, params, tile, pass_index)
+    def render(self, camera, materials=None, params=None, tile=None, pass_index=0, **kw):
+        res = real(self, camera, materials, params, tile, pass_index, **kw)
         t = tuple(int(v) for v in (tile if tile is not None
                                    else (0, 0, camera.width, camera.height)))
         st = res.stats

@@ -25,6 +25,11 @@ def test_orbit_and_sliders_converge_and_are_timed(capsys):
     for rec in records:
         m = rec["metrics"]
         assert m["converged"] == 1.0 and m["s"] > 0 and m["frames"] >= 1 and m["first_ms"] > 0
+        assert m["shadow_s"] >= m["s"]                   # the scan's shadow follows the GI
+    colour, rough = records[1], records[2]
+    assert colour["metrics"]["recombined"] == 1.0 and colour["case"]["edit"] == "recombined"
+    assert colour["metrics"]["frames"] == 1                # converged in the edit's own frame
+    assert rough["metrics"]["recombined"] == 0.0 and "roughness" in rough["case"]["edit"]
     out = capsys.readouterr().out
     assert "| preview | orbit |" in out and "| preview | roughness |" in out
 

@@ -355,3 +355,50 @@ def test_passes_restart_from_pass_zero_when_the_view_changes():
     assert gi.pass_index == 2 and "(pass 3 of 4)" in gi.status_words()
     gi.restart(CAM, rect, 0.25, budget_ms=5, passes=4)
     assert gi.pass_index == 0 and gi.progress == 0.0 and gi.refining
+
+
+def _parted_render(boundary_moves: bool):
+    """The analytic sphere with its gather in parts: 'diffuse' = the texel's colour, material 0
+    left of the centre column and 1 right of it; with ``boundary_moves`` pass 1 moves the
+    boundary one column (a jittered sample crossing it)."""
+    from app.pbgi.gather_parts import empty
+
+    def render(cam, tile, pass_index=0):
+        img = sphere_image(cam, tile)
+        x0, y0, w, h = tile
+        parts = empty((h, w))
+        parts["diffuse"] = img[..., :3]
+        edge = cam.width // 2 + (1 if boundary_moves and pass_index % 2 else 0)
+        parts["material"] = (np.arange(x0, x0 + w) >= edge)[None, :].repeat(h, 0)
+        return img, parts
+    return render
+
+
+@pytest.mark.parametrize("passes", [1, 3])
+def test_recolour_relights_every_refined_texel_and_the_preview(passes):
+    """After ``recolour({1}, f)`` the texels of material 1 show f of their parts' mean over the
+    passes (here 2 x the colour), material 0's are untouched, and the refinement is where it
+    was; a boundary the passes' samples crossed cannot be recoloured (nothing changes)."""
+    gi = ProgressiveGI(_parted_render(False))
+    gi.restart(CAM, screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS), 0.25, passes=passes)
+    gi.finish()
+    assert gi.recolourable and not gi.refining
+    before, preview = gi.full.copy(), gi.preview.copy()
+    assert gi.recolour({1}, lambda rec, i: 2.0 * rec["diffuse"])
+    assert not gi.refining and gi.preview_dirty
+    right = np.zeros(before.shape[:2], bool)
+    right[:, CAM.width // 2:] = True
+    hit = before[..., 3] > 0.5
+    np.testing.assert_allclose(gi.full[..., :3][hit & right], 2 * before[..., :3][hit & right],
+                               rtol=1e-6)
+    np.testing.assert_array_equal(gi.full[hit & ~right], before[hit & ~right])
+    assert (gi.preview[..., :3] != preview[..., :3]).any()
+    assert gi.full[..., 3].tolist() == before[..., 3].tolist()
+
+    crossed = ProgressiveGI(_parted_render(True))
+    crossed.restart(CAM, screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS), 0.25, passes=2)
+    crossed.finish()
+    before = crossed.full.copy()
+    assert not crossed.recolour({1}, lambda rec, i: 2.0 * rec["diffuse"])
+    np.testing.assert_array_equal(crossed.full, before)
+    assert ProgressiveGI(lambda c, t, p=0: sphere_image(c, t)).recolour({0}, None) is False

@@ -20,7 +20,10 @@ bounce on the scan for ``background``.
 
 Material edits change only the material table (and the G-buffer's factors): when the previous
 render's micro-buffers are still valid (same cloud, asset, camera, tile, size, mode and normal
-maps, all receivers in one batch), only the G-buffer and the gather run again.
+maps, all receivers in one batch), only the G-buffer and the gather run again. A render asked
+for ``parts`` also returns the gather kept apart per BRDF factor, from which the viewer
+recombines an edit of base colour, metallic, specular, sheen or clearcoat amount without any
+render (app/pbgi/gather_parts.py).
 """
 
 from __future__ import annotations

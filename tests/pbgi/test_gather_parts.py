@@ -71,7 +71,7 @@ def test_a_smaller_specular_share_recombines_at_least_as_accurately(demo_relight
     """Metallic 0.8 -> 0.2 at roughness 0.3: the new gather would size its lobe buffers down
     (lib/lobe_size.glsl), the recombination keeps the old, larger ones - so the two differ by
     the lobe's quantisation, and the recombination is the closer to a reference (M 32, 4
-    passes) - measured 0.0 vs 0.0."""
+    passes): measured 15.2% against 19.7% relative RMSE."""
     a, b = Material(roughness=0.3, metallic=0.8), Material(roughness=0.3, metallic=0.2)
     assert recombinable([a], [b], RenderParams(), walks_asset=False) is None
     from app.demo.room import default_views
@@ -83,7 +83,6 @@ def test_a_smaller_specular_share_recombines_at_least_as_accurately(demo_relight
     own = _render(demo_relighter, b, parts=False).image[..., :3]
     err = [float(np.sqrt(((x - ref[..., :3]) ** 2)[on].mean()) / ref[..., :3][on].mean())
            for x in (rec, own)]
-    print("relative RMSE against the reference: recombined %.4f, own gather %.4f" % tuple(err))
     assert err[0] <= err[1] * 1.05
 
 

@@ -593,9 +593,11 @@ class ViewerEngine:
                                 self.session.settings["view.eye_dome"])
             self._room_dirty = False
             self._composite_dirty = True
-        self._upload_gi()
+        whole = self._asset_dirty           # set before the new tiles: the whole asset
+        tiles = self._upload_gi()
         if self._composite_dirty or self._asset_dirty:
-            self._composite(cam, room=self._composite_dirty)
+            self._composite(cam, room=self._composite_dirty,
+                            only=None if whole or self._b_active else tiles)
         ms = (time.perf_counter() - t0) * 1e3
         self.frame_ms.append(ms)
         del self.frame_ms[:-240]
@@ -633,10 +635,14 @@ class ViewerEngine:
                                               self.gi_b.full) or {}
             self.timings["compare_metrics_ms"] = (time.perf_counter() - t) * 1e3
 
-    def _upload_gi(self) -> None:
+    def _upload_gi(self):
+        """Send what the GI layers changed to their textures. Returns the screen rectangle
+        (x0, y0, x1, y1), row 0 at the top, that A's new tiles can change in the composite
+        when they are all that changed (else None: the whole asset)."""
         if self.gi.full is None:
-            return
+            return None
         preview, reset, rects = self.gi.take_dirty()
+        changed = None
         if preview:
             self.view.upload_preview(self.gi.preview)
             self._asset_dirty = True
@@ -646,7 +652,10 @@ class ViewerEngine:
         elif rects:
             self.view.upload_full(self.gi.full, rects)
             self._asset_dirty = True
+            if not preview:
+                changed = self._screen_bounds(rects)
         if self._b_active and self.gi_b.full is not None:
+            changed = None
             side = self.view.side_b
             preview, reset, rects = self.gi_b.take_dirty()
             if preview or side.preview_tex is None:
@@ -656,6 +665,22 @@ class ViewerEngine:
             elif rects:
                 self.view.upload_full(self.gi_b.full, rects, side)
             self._asset_dirty = self._asset_dirty or preview or reset or bool(rects)
+        return changed
+
+    def _screen_bounds(self, rects):
+        """The screen pixels the composite's upsampling of A's layer reads ``rects`` (layer
+        texels, top-left x, y, w, h) for: their bounding box scaled to the window, grown by the
+        2 x 2 taps of lib/joint_bilateral.glsl and a pixel of rounding."""
+        layer = self.gi.camera
+        sx, sy = self.size[0] / layer.width, self.size[1] / layer.height
+        pad = int(np.ceil(max(sx, sy))) + 2
+        x0 = min(r[0] for r in rects)
+        y0 = min(r[1] for r in rects)
+        x1 = max(r[0] + r[2] for r in rects)
+        y1 = max(r[1] + r[3] for r in rects)
+        return (max(int(np.floor(x0 * sx)) - pad, 0), max(int(np.floor(y0 * sy)) - pad, 0),
+                min(int(np.ceil(x1 * sx)) + pad, self.size[0]),
+                min(int(np.ceil(y1 * sy)) + pad, self.size[1]))
 
     def _label(self, cam: Camera):
         if self.renderer_available or self.mesh is None:
@@ -671,10 +696,21 @@ class ViewerEngine:
         cx, cy = x + w // 2, y + h // 2
         return (cx - lw // 2, cam.height - (cy + lh // 2), lw, lh)
 
-    def _composite(self, cam: Camera, room: bool = True) -> None:
+    def _composite(self, cam: Camera, room: bool = True, only=None) -> None:
+        """Composite the picture: the room too when ``room``; the asset's pixels inside
+        ``only`` (x0, y0, x1, y1, row 0 at the top) alone when given - the new tiles of a
+        refinement frame, whose whole-asset composite at 1280x800 cost llvmpipe about as much
+        as the tiles themselves."""
         s = self.session.settings
         label = self._label(cam)
         rect = None if self.mesh is None else screen_rect(cam, *self.mesh.bounds())
+        if rect is not None and only is not None and not room and label is None:
+            x0, y0 = max(rect[0], only[0]), max(rect[1], only[1])
+            x1, y1 = min(rect[0] + rect[2], only[2]), min(rect[1] + rect[3], only[3])
+            if x1 <= x0 or y1 <= y0:
+                self._composite_dirty = self._asset_dirty = False
+                return
+            rect = (x0, y0, x1 - x0, y1 - y0)
         # a failed relighting shows the placeholder hatch (the reason is in the messages), so
         # the asset never silently vanishes from the picture
         kw = dict(raw_room=self.cloud.false_colour(s["view.cloud"]),

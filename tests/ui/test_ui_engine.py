@@ -45,6 +45,35 @@ def test_gpu_composite_matches_numpy_twin(ctx, renders):
     np.testing.assert_allclose(gpu, twin(e), atol=1e-5)
 
 
+def test_refinement_frames_composite_only_their_tiles_and_miss_nothing(ctx, renders):
+    """A refinement frame composites only the screen rectangle its new tiles can change (the
+    upsampling's taps included); frame after frame the picture is the whole composite's, bit
+    for bit, at a layer scale below 1 too."""
+    from tests.support.viewer import small_session
+    for scale in (1.0, 0.5):
+        e = make_engine(ctx, (96, 72), session=small_session(**{"pbgi.render_scale": scale,
+                                                                "pbgi.differential": False}))
+        e.frame()
+        calls = []
+        real = e.view.composite
+        e.view.composite = lambda *a, **k: (calls.append(k.get("asset_rect")), real(*a, **k))[1]
+        while e.gi.refining:
+            e.frame(budget_ms=5.0)
+            tiled = e.view.read_linear()
+            real(e.camera(), e.session.settings["view.exposure"],
+                 e.session.settings["view.tonemap"], raw_room=False, unavailable=False,
+                 asset_rect=screen_rect_of(e))        # the whole asset, over the same state
+            np.testing.assert_array_equal(tiled, e.view.read_linear())
+        full = screen_rect_of(e)
+        assert any(r is not None and r[2] * r[3] < full[2] * full[3] for r in calls), calls
+        e.release()
+
+
+def screen_rect_of(e):
+    from app.ui.refine import screen_rect
+    return screen_rect(e.camera(), *e.mesh.bounds())
+
+
 def test_bilateral_upsampling_keeps_colours_on_their_side_of_a_depth_edge():
     """Two surfaces at different depths, GI known only at 1/4 resolution: each full-resolution
     pixel takes its colour from the low-resolution samples of its own surface."""

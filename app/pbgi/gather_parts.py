@@ -93,10 +93,12 @@ def changed(old, new) -> set[str]:
 
 def _lobe_share_bounds(material) -> tuple[np.ndarray, float]:
     """(specular luminance at Fresnel weight 0 and 1, diffuse luminance) of lobe_size.glsl's
-    lobe_share (its lobe_spec_share factor depends on roughness alone, equal on both sides)."""
+    lobe_share (its lobe_spec_share factor depends on roughness alone, equal on both sides),
+    in that shader's luminance (lib/common.glsl: Rec. 709, app.color.luminance)."""
+    from app.color import luminance
     f = factors(material)
-    spec = np.array([_lum(f["spec0"]), 1.0])
-    return spec, (1.0 - f["metallic"]) * float(_lum(f["base"]))
+    spec = np.array([float(luminance(f["spec0"])), float(luminance(np.ones(3)))])
+    return spec, (1.0 - f["metallic"]) * float(luminance(f["base"]))
 
 
 def recombinable(old_materials, new_materials, params, walks_asset: bool) -> str | None:

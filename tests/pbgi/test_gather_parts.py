@@ -93,10 +93,14 @@ def test_a_smaller_specular_share_recombines_at_least_as_accurately(demo_relight
     (dict(roughness=0.3, base_color=(0.9, 0.9, 0.9)), dict(roughness=0.3,
                                                           base_color=(0.1, 0.1, 0.1)),
      "specular share"),
+    (dict(roughness=0.3, base_color=(0.0, 1.0, 0.0)), dict(roughness=0.3,
+                                                          base_color=(1.0, 0.5, 0.0)),
+     "specular share"),      # the same 0.3/0.6/0.1 tint luminance, a lower Rec. 709 one
     (GOLD, dict(GOLD, metallic=0.5), "coarse micro-buffer"),
     (dict(roughness=0.5), dict(roughness=0.5, clearcoat=0.5), "clearcoat turned on"),
     (dict(roughness=0.5), dict(roughness=0.5, emissive=(1.0, 0.0, 0.0)), "emissive"),
-], ids=["roughness", "anisotropic", "dielectric-to-metal", "darker-glossy", "gold-half",
+], ids=["roughness", "anisotropic", "dielectric-to-metal", "darker-glossy", "green-to-orange",
+        "gold-half",
         "coat-on", "emissive"])
 def test_edits_that_need_other_buffers_are_refused(old, new, why):
     params = RenderParams()

@@ -83,6 +83,21 @@ def clearcoat_alpha(params) -> np.ndarray:
     return _mix(0.1, 0.001, gloss)
 
 
+def colour_factors(params) -> tuple[np.ndarray, np.ndarray]:
+    """(spec0, sheen colour), each (..., 3), of params (..., 13): the specular lobe's F0 and the
+    sheen's colour before its amount (principled.glsl's q.spec0 and q.sheen_w / sheen), from
+    the tint hue base / lum(base) (the explorer's 0.3 R + 0.6 G + 0.1 B)."""
+    p = np.clip(np.asarray(params, dtype=np.float64), 0.0, 1.0)
+    base = p[..., 0:3]
+    lum = (0.3 * base[..., 0] + 0.6 * base[..., 1] + 0.1 * base[..., 2])[..., None]
+    tint = np.where(lum > 0.0, base / np.where(lum > 0.0, lum, 1.0), 1.0)
+
+    def s(name):
+        return p[..., _IDX[name]][..., None]
+    spec0 = _mix(s("specular") * 0.08 * _mix(1.0, tint, s("specular_tint")), base, s("metallic"))
+    return spec0, _mix(1.0, tint, s("sheen_tint"))
+
+
 def principled_brdf(params, L, V, N, X, Y, lobes=LOBES) -> np.ndarray:
     """f(L, V) (..., 3) in 1/sr, broadcasting params (..., 13) against the directions (..., 3).
 
@@ -115,8 +130,7 @@ def principled_brdf(params, L, V, N, X, Y, lobes=LOBES) -> np.ndarray:
     rough = s("roughness")
     out = np.zeros(shape + (3,))
 
-    lum = (0.3 * base[..., 0] + 0.6 * base[..., 1] + 0.1 * base[..., 2])[..., None]
-    tint = np.where(lum > 0.0, base / np.where(lum > 0.0, lum, 1.0), 1.0)
+    spec0, sheen_color = colour_factors(p)
     metallic = s("metallic")
 
     if "diffuse" in lobes:
@@ -128,10 +142,8 @@ def principled_brdf(params, L, V, N, X, Y, lobes=LOBES) -> np.ndarray:
         ss = 1.25 * (fss * (1.0 / np.maximum(n_dot_l + n_dot_v, 1e-6) - 0.5) + 0.5)
         out += (1.0 / np.pi) * _mix(fd, ss, s("subsurface")) * base * (1.0 - metallic)
     if "sheen" in lobes:
-        sheen_color = _mix(1.0, tint, s("sheen_tint"))
         out += fh * s("sheen") * sheen_color * (1.0 - metallic)
     if "specular" in lobes:
-        spec0 = _mix(s("specular") * 0.08 * _mix(1.0, tint, s("specular_tint")), base, metallic)
         ax, ay = (a[..., None] for a in spec_alphas(p))
         ds = _gtr2_aniso(n_dot_h, _dot(H, X)[..., None], _dot(H, Y)[..., None], ax, ay)
         fs = _mix(spec0, 1.0, fh)

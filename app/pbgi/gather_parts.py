@@ -48,24 +48,15 @@ TEXTURES = ("base_color_texture", "metallic_roughness_texture", "normal_texture"
 PART_NAMES = ("diffuse", "sheen", "spec_f0", "spec_one", "coat")
 
 
-def _lum(rgb: np.ndarray) -> np.ndarray:
-    """lib/principled.glsl's tint luminance (Burley's 0.3 R + 0.6 G + 0.1 B)."""
-    return rgb @ np.array([0.3, 0.6, 0.1])
-
-
 def factors(material) -> dict[str, np.ndarray]:
     """The factors principled_prepare derives from one untextured material: base, metallic,
-    spec0, sheen_w, clearcoat (clamped as the shader clamps them)."""
-    base = np.clip(np.asarray(material.base_color, np.float64), 0.0, 1.0)
-    c = {n: float(np.clip(getattr(material, n), 0.0, 1.0))
-         for n in ("metallic", "specular", "specular_tint", "sheen", "sheen_tint", "clearcoat")}
-    lum = float(_lum(base))
-    tint = base / lum if lum > 0.0 else np.ones(3)
-    dielectric = c["specular"] * 0.08 * ((1 - c["specular_tint"]) + c["specular_tint"] * tint)
-    spec0 = dielectric * (1 - c["metallic"]) + base * c["metallic"]
-    sheen_w = c["sheen"] * ((1 - c["sheen_tint"]) + c["sheen_tint"] * tint)
-    return {"base": base, "metallic": c["metallic"], "spec0": spec0, "sheen_w": sheen_w,
-            "clearcoat": c["clearcoat"]}
+    spec0, sheen_w, clearcoat (clamped as the shader clamps them; app/pbgi/brdf.py's twin)."""
+    from app.pbgi.brdf import PARAM_NAMES, colour_factors, pack_params
+    p = np.clip(pack_params(material), 0.0, 1.0)
+    spec0, sheen_color = colour_factors(p)
+    c = {n: float(p[PARAM_NAMES.index(n)]) for n in ("metallic", "sheen", "clearcoat")}
+    return {"base": p[0:3], "metallic": c["metallic"], "spec0": spec0,
+            "sheen_w": c["sheen"] * sheen_color, "clearcoat": c["clearcoat"]}
 
 
 def recombine(parts: np.ndarray, material) -> np.ndarray:

@@ -440,8 +440,8 @@ class Relighter:
         image = np.zeros((h, w, 4), dtype=np.float32)
         if n == 0:
             stats.ms, stats.mb = (t1 - t0) * 1e3, gb["bytes"] / MB
-            return RenderResult(image, stats, GATHER_PARTS.zeros(w * h).reshape(h, w)
-                                if parts else None)
+            from app.pbgi.gather_parts import empty
+            return RenderResult(image, stats, empty((h, w)) if parts else None)
 
         bufs = {"receivers": ctx.buffer(rec.tobytes()),
                 "materials": ctx.buffer(material_table(materials).tobytes()),

@@ -67,7 +67,7 @@ import time
 import numpy as np
 
 from app.camera import Camera
-from app.pbgi.gather_parts import PART_WORDS, part_records, part_words
+from app.pbgi.gather_parts import PART_WORDS, material_ids, part_records, part_words
 from app.pbgi.upsample import scaled_camera
 from app.render.gpu_layout import GI_PENDING, GI_TEXEL
 
@@ -186,9 +186,9 @@ class ProgressiveGI:
         self._sum: np.ndarray | None = None    # radiance summed over the passes that hit
         self._hits: np.ndarray | None = None   # passes that hit the asset, per texel
         # the gather in parts (see recolour), over ``rect``: GATHER_PARTS words summed over the
-        # passes that hit, those passes, and the bits of the materials they saw; the preview's
+        # passes that hit (their count is _hits, or 1 in pass 0) and the bits of the materials
+        # they saw; the preview's
         self._parts: np.ndarray | None = None
-        self._parts_hits: np.ndarray | None = None
         self._parts_mats: np.ndarray | None = None
         self._preview_parts: np.ndarray | None = None
         self._preview_mats: np.ndarray | None = None
@@ -245,12 +245,11 @@ class ProgressiveGI:
         ``passes`` jittered passes of tiles."""
         self.passes, self.pass_index = max(int(passes), 1), 0
         self._sum = self._hits = None
-        self._parts = self._parts_hits = self._parts_mats = None
+        self._parts = self._parts_mats = None
         self._preview_parts = self._preview_mats = None
         if rect is not None:
             rh, rw = rect[3], rect[2]
             self._parts = np.zeros((rh, rw, PART_WORDS), np.float32)
-            self._parts_hits = np.zeros((rh, rw), np.float32)
             self._parts_mats = np.zeros((rh, rw), np.int64)
         if preview_scale != self.preview_scale:
             self.preview_scale = self.effective_scale = float(preview_scale)
@@ -369,8 +368,7 @@ class ProgressiveGI:
             self._preview_parts = np.zeros((small.height, small.width, PART_WORDS), np.float32)
             self._preview_parts[y0:y1, x0:x1] = part_words(parts)
             self._preview_mats = np.zeros((small.height, small.width), np.int64)
-            self._preview_mats[y0:y1, x0:x1] = material_bits(
-                np.rint(parts["material"]).astype(np.int64), hit)
+            self._preview_mats[y0:y1, x0:x1] = material_bits(material_ids(parts), hit)
         self.preview_camera = small
         self.shown_scale = s
         self.preview_dirty = True
@@ -444,23 +442,20 @@ class ProgressiveGI:
         if self._parts is None:
             return
         if parts is None:
-            self._parts = self._parts_hits = self._parts_mats = None
+            self._parts = self._parts_mats = None
             return
         h, w = img.shape[:2]
         rx, ry = x0 - self.rect[0], y0 - self.rect[1]
         hit = img[..., GI_TEXEL.index("status")] > 0.5
         words = part_words(parts)
-        bits = material_bits(np.rint(parts["material"]).astype(np.int64), hit)
+        bits = material_bits(material_ids(parts), hit)
         sums = self._parts[ry:ry + h, rx:rx + w]
-        hits = self._parts_hits[ry:ry + h, rx:rx + w]
         mats = self._parts_mats[ry:ry + h, rx:rx + w]
         if self.pass_index == 0:
             sums[:] = words * hit[..., None]
-            hits[:] = hit
             mats[:] = bits
         else:
             sums += words * hit[..., None]
-            hits += hit
             mats |= bits
 
     @property
@@ -482,18 +477,17 @@ class ProgressiveGI:
             return False
         mask = np.int64(sum(1 << c for c in changed))
         for mats in (self._parts_mats, self._preview_mats):
-            touched = (mats & mask) != 0
-            if (touched & ((mats & ~mask) != 0)).any():
-                return False              # a boundary with another material
-            if (touched & (np.bitwise_and(mats, mats - 1) != 0)).any():
-                return False              # two changed materials in one texel
+            # a texel of a changed material whose passes saw another material too
+            if (((mats & mask) != 0) & ((mats & (mats - 1)) != 0)).any():
+                return False
         status = GI_TEXEL.index("status")
         for c in changed:
             bit = np.int64(1 << c)
             # the texels refined so far (the mean over their passes)
             sel = self._parts_mats == bit
             if sel.any():
-                hits = self._parts_hits[sel]
+                hits = self._hits[sel] if self._hits is not None else np.ones(int(sel.sum()),
+                                                                             np.float32)
                 mean = self._parts[sel] / hits[:, None]
                 rad = radiance(part_records(mean), c)
                 x, y, w, h = self.rect

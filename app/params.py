@@ -175,10 +175,13 @@ HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "b
 # below), so a fresh viewer and a command line without --quality get exactly that preset.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {
     "preview": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 16, "pbgi.render_scale": 0.5,
+                "pbgi.rough_render_scale": 0.5,
                 "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
     "balanced": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
+                 "pbgi.rough_render_scale": 0.5,
                  "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
     "final": {"pbgi.mode": "classic", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
+              "pbgi.rough_render_scale": 1.0,
               "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
 }
 DEFAULT_QUALITY = "balanced"
@@ -299,6 +302,12 @@ PARAMS: tuple[Param, ...] = (
        "viewer's layer, refined in tiles when the view is idle, and `render`), brought back to "
        "full resolution by joint bilateral upsampling guided by the full-resolution G-buffer.",
        0.125, 1.0, "x", redo="gi"),
+    _f("pbgi.rough_render_scale", 0.5, "GI resolution when no material needs a lobe "
+       "micro-buffer (every roughness at or above pbgi.glossy_below, no clearcoat, no roughness "
+       "texture): diffuse and rough light is smooth across a surface, and the trade-off bench "
+       "measured half resolution as accurate as full at a third of the time; the lower of it "
+       "and render_scale applies. Narrow reflections keep render_scale (finer than a "
+       "low-resolution pixel).", 0.125, 1.0, "x", label="rough GI scale", redo="gi"),
     _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "
        "with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x", redo="gi"),
     _f("pbgi.stop_factor", 4.0, "A node is accepted into a receiver's micro-buffer once its solid "

@@ -16,7 +16,9 @@ glossy 0.25, near-mirror 0.05 and a clearcoat paint.
 
 Settings (``settings(grid)``): the full grid crosses Hybrid's micro-buffer size M (16, 24) with
 the GI render scale (1, 1/2, 1/4: the asset's GI rendered at that fraction of the resolution
-and brought back by joint bilateral upsampling, app/pbgi/upsample.py), and varies the rest one
+and brought back by joint bilateral upsampling, app/pbgi/upsample.py), adds Hybrid M = 24 at
+the scale per scene (1/2 where no material needs a lobe buffer, 1 where one does:
+``pbgi.rough_render_scale``, app/pbgi/upsample.py's gi_scale), and varies the rest one
 at a time around Hybrid M = 16: M = 8, the parallax tolerance, the Omega_tr factor, the node
 stop factor (1 Omega against the paper's 4 Omega; also at M = 24), Classic (M 16 and 24, scale
 1/2, stop 1), Mipmapped, and the environment-map baseline's face size; then the scene-dependent
@@ -83,6 +85,9 @@ class Setting:
     name: str
     values: tuple                     # ((key, value), ...): RenderParams overrides
     scale: float = 1.0
+    # the GI render scale where no material needs a lobe buffer (app/pbgi/upsample.py: gi_scale;
+    # pbgi.rough_render_scale); None: ``scale`` for every material
+    rough_scale: float | None = None
     # the materials it is measured on (None: every one): a "model only what the scene needs"
     # switch is measured only where it changes the frame (the lobe-only buffer: glossy metals)
     materials: tuple | None = None
@@ -95,6 +100,7 @@ class Setting:
         p = self.params
         return {"setting": self.name, "mode": p["pbgi.mode"],
                 "microbuffer": p.get("pbgi.microbuffer"), "scale": self.scale,
+                "rough_scale": self.rough_scale,
                 "stop_factor": p.get("pbgi.stop_factor"),
                 "parallax_tolerance": p.get("pbgi.parallax_tolerance"),
                 "omega_tr_factor": p.get("pbgi.omega_tr_factor"),
@@ -107,15 +113,19 @@ def _scale_name(s: float) -> str:
     return "1" if s == 1 else f"1/{round(1 / s)}"
 
 
-def make_setting(mode: str, scale: float = 1.0, materials=None, **kw) -> Setting:
+def make_setting(mode: str, scale: float = 1.0, materials=None, rough_scale=None,
+                 **kw) -> Setting:
     """A Setting from short names (m, stop, tol, omega_tr, face, variants, lobe_only); the name
-    says every non-default."""
+    says every non-default (``rough_scale``: "rough=1/2")."""
     keys = {"m": "pbgi.microbuffer", "stop": "pbgi.stop_factor", "tol": "pbgi.parallax_tolerance",
             "omega_tr": "pbgi.omega_tr_factor", "face": "pbgi.envmap_face",
             "variants": "pbgi.shader_variants", "lobe_only": "pbgi.lobe_only_microbuffer"}
     values = [("pbgi.mode", mode)] + [(keys[k], v) for k, v in kw.items()]
     words = [mode] + [f"{k}={v:g}" for k, v in kw.items()] + [f"scale={_scale_name(scale)}"]
+    if rough_scale is not None:
+        words.append(f"rough={_scale_name(rough_scale)}")
     return Setting(" ".join(words), tuple(values), float(scale),
+                   None if rough_scale is None else float(rough_scale),
                    tuple(materials) if materials else None)
 
 
@@ -136,6 +146,8 @@ def settings(grid: str) -> list[Setting]:
     for m in (16, 24):
         for s in (1.0, 0.5, 0.25):
             out.append(make_setting("hybrid", s, m=m))
+    # the scale per scene (pbgi.rough_render_scale): 1/2 where every lobe is rough, else 1
+    out.append(make_setting("hybrid", 1.0, rough_scale=0.5, m=24))
     out += [make_setting("hybrid", m=8), make_setting("hybrid", m=16, stop=1.0),
             make_setting("hybrid", m=24, stop=1.0),
             make_setting("hybrid", m=16, tol=0.5), make_setting("hybrid", m=16, tol=2.0),
@@ -253,9 +265,12 @@ def render_setting(rl, camera, mat, setting: Setting):
     """One frame of ``setting``: the image (h, w, 4) and the render's completion flag."""
     from app.pbgi.renderer import RenderParams
     from app.pbgi.upsample import render_upsampled
+    from app.pbgi.upsample import gi_scale
     params = RenderParams.from_dict(setting.params)
+    scale = (setting.scale if setting.rough_scale is None else
+             gi_scale(setting.scale, setting.rough_scale, [mat], params.glossy_below))
     rl.forget_microbuffers()
-    res = render_upsampled(rl, camera, [mat], params, 1, setting.scale)
+    res = render_upsampled(rl, camera, [mat], params, 1, scale)
     return res.image, bool(res.stats.completed)
 
 
@@ -308,7 +323,8 @@ def mark_fronts(records: list[dict], metric: str = "rel_rmse_4x4") -> None:
 # glossy issue's unmet target), so "within 12%" would leave no setting at all.
 BUDGETS = {"preview": 2.5, "balanced": 1.5, "final": None}
 # the settings app/params.py's QUALITY_PRESETS hold (circled on the plot)
-PRESET_SETTINGS = ("hybrid m=16 scale=1/2", "hybrid m=24 scale=1", "classic m=24 scale=1")
+PRESET_SETTINGS = ("hybrid m=16 scale=1/2", "hybrid m=24 scale=1 rough=1/2",
+                   "classic m=24 scale=1")
 
 
 def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rmse_4x4",
@@ -346,7 +362,8 @@ def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rms
 
 # -- outputs ----------------------------------------------------------------------------------
 
-CSV_FIELDS = ("room", "material", "setting", "mode", "microbuffer", "scale", "stop_factor",
+CSV_FIELDS = ("room", "material", "setting", "mode", "microbuffer", "scale", "rough_scale",
+              "stop_factor",
               "parallax_tolerance", "omega_tr_factor", "envmap_face", "shader_variants",
               "lobe_only_microbuffer", "ms", "ms_min", "ms_max",
               "rel_rmse", "rel_rmse_4x4", "flip", "ref_noise", "ref_noise_4x4", "completed",

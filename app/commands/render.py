@@ -122,7 +122,7 @@ def run(args) -> int:
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
-    from app.pbgi.upsample import render_upsampled
+    from app.pbgi.upsample import gi_scale_of, render_upsampled
 
     values = _check_args(args)
     from app.commands.compare import input_files, parse_side
@@ -158,7 +158,7 @@ def run(args) -> int:
                             "exposure": exposure})
     params = RenderParams.from_settings(values)
     passes = int(values["pbgi.passes"])
-    scale = float(values["pbgi.render_scale"])
+    scale = gi_scale_of(values, r.materials_for(materials))
     edge_samples = int(values["pbgi.edge_samples"])
     samples = max(passes, edge_samples if scale >= 1 else passes)
 

@@ -258,7 +258,7 @@ def run(args) -> int:
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
-    from app.pbgi.upsample import render_upsampled
+    from app.pbgi.upsample import gi_scale_of, render_upsampled
     from app.render.tonemap import tonemap_to_srgb8
 
     values, _ = _check_args(args)
@@ -278,7 +278,7 @@ def run(args) -> int:
     r.set_asset(mesh)
     params = RenderParams.from_settings(values)
     passes = int(values["pbgi.passes"])
-    scale = float(values["pbgi.render_scale"])
+    scale = gi_scale_of(values, r.materials_for(materials))
     edge_samples = int(values["pbgi.edge_samples"])
     exposure, tonemapper = values["view.exposure"], values["view.tonemap"]
     diff = None

@@ -115,6 +115,7 @@ class ViewerEngine:
         self.asset: Asset | None = None
         self.mesh = None
         self.relighter = None
+        self._layer_scale = 1.0           # the GI layer's resolution as _restart_gi chose it
         self.relighter_error: str | None = None
         self._lit_cloud = None
         self.gi = ProgressiveGI(self._render_gi)
@@ -512,6 +513,8 @@ class ViewerEngine:
         why = recombinable(old, new, params, r.walks_asset(params))
         if why is not None:
             return why
+        if self.layer_scale(self.session.settings) != self._layer_scale:
+            return "the GI resolution changes (pbgi.rough_render_scale)"
         edited = [i for i, (a, b) in enumerate(zip(old, new)) if changed(a, b)]
         if edited and not self.gi.recolour(edited, lambda rec, i: recombine(rec, new[i])):
             return "the picture holds no parts, or a pixel mixes an edited material with another"
@@ -604,12 +607,27 @@ class ViewerEngine:
         info["ms"] = ms
         return info
 
+    def layer_scale(self, values) -> float:
+        """The GI layer's resolution for these settings and the session's materials
+        (app/pbgi/upsample.py: gi_scale - ``pbgi.rough_render_scale`` while no material needs
+        a lobe micro-buffer, ``pbgi.render_scale`` otherwise)."""
+        from app.pbgi.upsample import gi_scale_of
+        r = self.relighter
+        if r is None or r.mesh is None:     # nothing to gather yet
+            return float(values["pbgi.render_scale"])
+        try:
+            materials = r.materials_for(self.session.materials)
+        except ScanlightError:              # materials the asset cannot take: the plain scale
+            return float(values["pbgi.render_scale"])
+        return gi_scale_of(values, materials)
+
     def _restart_gi(self, cam: Camera) -> None:
         self._gi_dirty = False
         self.gi_failed = False
         if self.mesh is None:
             return
-        layer = scaled_camera(cam, self.session.settings["pbgi.render_scale"])
+        self._layer_scale = self.layer_scale(self.session.settings)
+        layer = scaled_camera(cam, self._layer_scale)
         rect = screen_rect(layer, *self.mesh.bounds())
         s = self.session.settings
         self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
@@ -620,7 +638,7 @@ class ViewerEngine:
         self.compare_metrics = None
         self._b_active = self.compare_on and self.renderer_available and self._sync_b()
         if self._b_active:
-            layer_b = scaled_camera(cam, b_settings(s)["pbgi.render_scale"])
+            layer_b = scaled_camera(cam, self.layer_scale(b_settings(s)))
             self.gi_b.restart(layer_b, screen_rect(layer_b, *self.mesh.bounds()),
                               s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
                               s["pbgi.idle_passes"])

@@ -14,10 +14,14 @@ SMALL_MICROBUFFER = 8      # the settings' minimum: the cheapest real gather
 
 
 def small_session(microbuffer: int = SMALL_MICROBUFFER, **settings):
-    """The demo session with a small micro-buffer (and any other settings given)."""
+    """The demo session with a small micro-buffer and the GI layer at the window's resolution
+    for rough materials too (and any other settings given): the tests' windows are small, and
+    what they check of the layer - its pixels, tiles and metrics - was sized for a whole one.
+    The per-scene scale of the default preset has its own test (test_ui_engine.py)."""
     from app.ui.engine import default_session
     s = default_session()
-    s.settings.update({"pbgi.microbuffer": microbuffer, **settings})
+    s.settings.update({"pbgi.microbuffer": microbuffer, "pbgi.rough_render_scale": 1.0,
+                       **settings})
     s.settings.take_changes()
     return s
 

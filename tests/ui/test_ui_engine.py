@@ -170,6 +170,36 @@ def test_a_colour_edit_recombines_the_converged_picture(ctx, renders):
     fresh.release()
 
 
+def test_the_layer_scale_follows_the_materials(ctx, renders):
+    """At the default preset the demo sphere's rough material refines its GI layer at
+    pbgi.rough_render_scale (half the window: app/pbgi/upsample.py's gi_scale); an edit that
+    brings a narrow lobe in gathers again, saying why, at render_scale (the whole window), and
+    back; the final preset keeps the whole window for rough light too."""
+    from app.params import QUALITY_PRESETS
+    rough = QUALITY_PRESETS["balanced"]["pbgi.rough_render_scale"]
+    e = make_engine(ctx, (96, 72), session=small_session(**{"pbgi.differential": False,
+                                                            "pbgi.rough_render_scale": rough}))
+    e.frame()
+    assert rough == 0.5 and (e.gi.camera.width, e.gi.camera.height) == (48, 36)
+    e.finish_refinement()
+    assert {c.size for c in renders[-3:]} == {(48, 36)}
+    e.session.set_material(0, {"roughness": 0.3})
+    e.frame()
+    assert "roughness" in e.material_edit and e.gi.refining
+    assert (e.gi.camera.width, e.gi.camera.height) == (96, 72)
+    e.session.set_material(0, {"clearcoat": 0.5, "roughness": 0.6})
+    e.frame()
+    assert (e.gi.camera.width, e.gi.camera.height) == (96, 72)
+    e.session.set_material(0, {"clearcoat": 0.0})
+    e.frame()
+    assert e.material_edit != "recombined"
+    assert (e.gi.camera.width, e.gi.camera.height) == (48, 36)
+    e.session.settings.set("pbgi.quality", "final")
+    e.frame()
+    assert (e.gi.camera.width, e.gi.camera.height) == (96, 72)
+    e.release()
+
+
 def test_each_change_key_has_its_handler(ctx, renders):
     """Table parameters reach the handler of their Param.redo (a new parameter needs no engine
     edit); document keys have their own handlers, connected in the order of the work; keys

@@ -83,6 +83,7 @@ void main() {
     }
     uvec2 size = lobe_size(Q, terms, u_glossy_below, u_rings, u_sectors);
     LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, size.x, size.y);
+    LobeCone K = lobe_cone(F);
     uint cells_used = size.x * size.y;
     for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {
         if (c == cells_used) break;
@@ -119,8 +120,9 @@ void main() {
             float sin_b2 = sin_b * sin_b;
             float cos_b = sqrt(max(1.0 - sin_b2, 0.0));
             float om_min;
-            if (cut_back_facing(tnode_cone(node), dv * inv_d, sin_b, cos_b)) {
-                next = link.skip;                          // back-facing (Fig. 5)
+            if (lobe_cone_outside(K, dv * inv_d, sin_b, cos_b)
+                    || cut_back_facing(tnode_cone(node), dv * inv_d, sin_b, cos_b)) {
+                next = link.skip;           // outside the lobe's cone, or back-facing (Fig. 5)
             } else {
                 rect = lobe_rect(F, dv * inv_d, sin_b, cos_b, om_min);
                 if (rect == 0xFFFFFFFFu) {

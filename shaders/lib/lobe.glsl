@@ -457,6 +457,33 @@ uint lobe_rect_stretched(LobeFrame f, vec3 l, float sin_b, float cos_b, out floa
 }
 #undef LOBE_POLY_STEP
 
+// A cheap first cull for the walk, before lobe_rect's trigonometry: every direction of the
+// lobe's domain lies within 2 theta_max of the mirror direction R = reflect(-V, N) (L is V
+// reflected about h, and two reflections about h = N and h compose to a rotation by twice the
+// angle between them, which moves no direction farther than that), so a node whose cone (axis
+// l, angular radius b) lies wholly outside that cone of R holds no direction of the domain.
+// theta_max: the domain's tan^2 bound, through the stretch's largest magnification for an
+// anisotropic lobe. The node is culled when angle(l, R) > 2 theta_max + b, i.e. l.R below
+// cos(2 theta_max + b) while that angle is below pi (its sine positive); a margin of
+// LOBE_CONE_EPS in the cosine for float rounding. Nothing it culls can be hit by a lobe ray.
+#define LOBE_CONE_EPS 1e-4
+struct LobeCone { vec3 R; float c2, s2; };    // cos and sin of 2 theta_max
+
+LobeCone lobe_cone(LobeFrame f) {
+    float smax = max(f.st.x, f.st.y);
+    float t2 = f.tan2_max * smax * smax;          // tan^2 theta_max (true half-vector)
+    float c = 1.0 / (1.0 + t2);                   // cos^2 theta_max
+    // cos 2t = 2 cos^2 t - 1, sin 2t = 2 sin t cos t
+    return LobeCone(2.0 * dot(f.N, f.V) * f.N - f.V, 2.0 * c - 1.0,
+                    2.0 * sqrt(max(c * (1.0 - c), 0.0)));
+}
+
+bool lobe_cone_outside(LobeCone k, vec3 l, float sin_b, float cos_b) {
+    float sa = k.s2 * cos_b + k.c2 * sin_b;       // sin(2 theta_max + b)
+    float ca = k.c2 * cos_b - k.s2 * sin_b;       // cos(2 theta_max + b)
+    return sa > 0.0 && dot(l, k.R) < ca - LOBE_CONE_EPS;
+}
+
 uint lobe_rect_cells(uint r) { return (((r >> 8u) & 255u) - (r & 255u) + 1u) * (r >> 24u); }
 
 // Walks the cells of a packed rectangle (rings r0..r1 x ns sectors from s0, wrapping) one per

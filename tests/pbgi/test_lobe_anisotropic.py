@@ -92,13 +92,15 @@ def rect_check(ctx):
     from tests.support import TEST_SHADERS
     prog = load_compute(ctx, TEST_SHADERS / "lobe_rect_check.glsl")
 
-    def run(C, nodes, samples: int = 5, shrink: float = 0.2):
+    def run(C, nodes, samples: int = 5, shrink: float = 0.2, cone: bool = False):
         n = len(nodes)
         raw = run_ssbo(ctx, prog, [C, nodes], n * 32, (n + 15) // 16, u_count=n,
                        u_samples=samples, u_shrink=shrink)
         out = np.frombuffer(raw, np.uint32).reshape(n, 2, 4).copy()
         assert np.all(out[:, 1, 3] == 1), "some invocations did not complete"
         rect, hits, miss, miss_shrunk = out[:, 0].T
+        if cone:                        # the micro-pixels hit, and lobe_cone_outside's cull
+            return hits, out[:, 1, 2] == 1
         return rect, hits, miss, miss_shrunk, out[:, 1, 0]
 
     return run
@@ -128,6 +130,22 @@ def test_lobe_rect_holds_every_micro_pixel_the_node_can_hit(rect_check, aniso):
     assert miss.sum() == 0, np.nonzero(miss)[0][:10]
     assert _rect_fields_valid(C, rect)
     assert (miss_shrunk[hit] > 0).mean() > 0.3, (miss_shrunk[hit] > 0).mean()
+
+
+@pytest.mark.parametrize("aniso", [True, False], ids=["anisotropic", "isotropic"])
+def test_the_lobe_cone_culls_no_node_a_ray_can_hit(rect_check, aniso):
+    """lib/lobe.glsl's lobe_cone_outside, the lobe walk's first cull (every direction of the
+    domain lies within 2 theta_max of the mirror direction): no node it culls has a micro-pixel
+    whose ray lies in its cone, over nodes of every size the walk meets (tiny to over the
+    horizon), and it has teeth: it culls a good share of the nodes that hit nothing (near
+    mirrors: most of the room), which lobe_rect would reach only through its trigonometry. The
+    walk's images are the same bit for bit with and without it (measured on the demo close-up,
+    Classic and Hybrid, six materials; the near-mirror's lobe walk 290 -> 202 ms)."""
+    for seed, b_range in [(7, (0.003, 0.6)), (3, (1e-5, 1e-3)), (5, (0.5, 1.5))]:
+        hits, culled = rect_check(*_rect_cases(6000, seed, aniso, b_range), samples=6, cone=True)
+        assert not np.any(culled & (hits > 0)), np.nonzero(culled & (hits > 0))[0][:10]
+        assert (hits > 0).sum() > 50            # tiny nodes: few hit anything
+        assert culled.sum() > 0.2 * (hits == 0).sum(), (culled.sum(), (hits == 0).sum())
 
 
 def test_lobe_rect_anisotropic_tiny_and_huge_nodes(rect_check):

@@ -6,8 +6,8 @@
 // same warp as lobe_cell); a micro-pixel "hits" when one of its rays lies in the node's cone
 // (|L x l| <= sin b, L.l > 0: the node's sphere, which holds its disc). Output per case:
 // (rect, hit micro-pixels, hit ones outside rect, hit ones outside the rectangle shrunk by
-// u_shrink of its rings and sectors) and (micro-pixels in rect, 0, 0, 1): w = 1 marks a
-// completed invocation.
+// u_shrink of its rings and sectors) and (micro-pixels in rect, 0, culled by lobe_cone_outside,
+// 1): w = 1 marks a completed invocation.
 #include "lib/common.glsl"
 #include "lib/principled.glsl"
 #include "lib/lobe.glsl"
@@ -89,5 +89,7 @@ void main() {
         }
     }
     out_data[2u * c] = uvec4(r, hits, miss, miss_s);
-    out_data[2u * c + 1u] = uvec4(r == 0xFFFFFFFFu ? 0u : lobe_rect_cells(r), 0u, 0u, 1u);
+    bool culled = lobe_cone_outside(lobe_cone(f), l, sin_b, cos_b);
+    out_data[2u * c + 1u] = uvec4(r == 0xFFFFFFFFu ? 0u : lobe_rect_cells(r), 0u,
+                                  culled ? 1u : 0u, 1u);
 }

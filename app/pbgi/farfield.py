@@ -109,8 +109,12 @@ DEFAULT_TOLERANCE = 1.0       # eps, in micro-pixels
 DEFAULT_MAX_LEVEL = 3         # blocks up to 8 x 8 receivers
 DEFAULT_MAX_CONE = 0.1        # radians: the most a receiver's normal may differ from its block's
 MIN_BLOCK = 4                 # receivers; a smaller block shares too little to pay its walk
-MAX_CHUNK = 128               # blocks walked per chunk: bounds the block micro-buffers (1.6 MB at
-                              # M = 32) while two 64-wide workgroups still keep both cores busy
+MAX_CHUNK = 512               # blocks walked per chunk: bounds the block micro-buffers (6.4 MB at
+                              # M = 32). Each chunk's far walk is a few resumed dispatches with a
+                              # read-back between them; 128 took 2-3x the dispatches of one chunk
+                              # per batch and 3-6% more of the frame (demo close-up, Hybrid:
+                              # 128 / M 16 149-150 -> 144-145 ms, 256 / M 24 754-811 -> 723-754,
+                              # 512 / M 24 2488-2512 -> 2324-2377; the same images bit for bit)
 INF = 3.0e38
 # GPU bytes besides the block micro-buffers: per receiver the near walk's resume state, ball and
 # frame, block index and the gather's frame; per block its pseudo-receiver record, ball and frame

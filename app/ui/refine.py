@@ -75,6 +75,9 @@ CELL = 32                 # tile granularity before the cost per pixel is known
 MIN_CELL, MAX_CELL = 8, 64
 MIN_PREVIEW_SCALE = 1 / 16
 FIRST_PREVIEW_SCALE = 1 / 16  # before any cost per pixel is known: the cheapest
+MIN_PREVIEW_ASSET_PX = 3  # ... but never fewer preview pixels across the asset's rectangle: a
+                          # small window at a GI scale below 1 gave the first preview no pixel
+                          # on the asset, and the asset vanished until the tiles came
 ETA_MIN_FRACTION, ETA_MIN_S = 0.05, 0.5   # data needed before the time left is said
 ETA_SMOOTHING = 0.3       # weight of each frame's estimate of the total refinement time
 MAX_MATERIAL_BIT = 63     # material ids from here on share one bit: never recoloured
@@ -351,6 +354,7 @@ class ProgressiveGI:
             s = min(s, max(MIN_PREVIEW_SCALE, fit))
         else:
             s = min(s, FIRST_PREVIEW_SCALE)
+        s = max(s, min(1.0, MIN_PREVIEW_ASSET_PX / max(min(rect[2], rect[3]), 1)))
         small = scaled_camera(cam, s)
         sx, sy = small.width / cam.width, small.height / cam.height
         x0, y0 = int(math.floor(rect[0] * sx)), int(math.floor(rect[1] * sy))

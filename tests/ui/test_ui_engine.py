@@ -45,6 +45,18 @@ def test_gpu_composite_matches_numpy_twin(ctx, renders):
     np.testing.assert_allclose(gpu, twin(e), atol=1e-5)
 
 
+def test_the_first_preview_shows_a_small_asset_at_a_low_gi_scale(ctx, renders):
+    """A small window at the default preset's GI scale for rough light (1/2): the first,
+    cheapest preview (1/16 of the layer) would have no pixel on the asset; it keeps at least
+    refine.MIN_PREVIEW_ASSET_PX across the asset's rectangle, so the asset is drawn from the
+    first interactive frame."""
+    e = make_engine(ctx, (80, 60), session=small_session(**{"pbgi.rough_render_scale": 0.5}))
+    e.frame(interacting=True)
+    assert (e.gi.camera.width, e.gi.camera.height) == (40, 30)
+    assert e.gi.progress == 0.0 and e.view.read_linear()[..., 3].sum() > 100
+    e.release()
+
+
 def test_refinement_frames_composite_only_their_tiles_and_miss_nothing(ctx, renders):
     """A refinement frame composites only the screen rectangle its new tiles can change (the
     upsampling's taps included); frame after frame the picture is the whole composite's, bit

@@ -30,7 +30,11 @@
 #define CUT_ORDERED_WRITES 1          // the walk accepts nodes in index order
 #include "lib/pbgi_cut.glsl"
 
-layout(local_size_x = WORKGROUP_SIZE) in;
+// the local size: gen/bindings.glsl's WORKGROUP_SIZE, or the one app/pbgi/classic.py compiles in
+#ifndef CUT_WORKGROUP
+#define CUT_WORKGROUP WORKGROUP_SIZE
+#endif
+layout(local_size_x = CUT_WORKGROUP) in;
 
 layout(std430, binding = SSBO_WALK_STATE) buffer State { ClassicState state[]; };
 layout(std430, binding = SSBO_COUNTERS) buffer Counter { uint remaining; };

@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.pbgi.gpu_layout import (CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT,
-                                 dispatch_groups)
+from app.pbgi.gpu_layout import CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT, WORKGROUP
 from app.pbgi.microbuffer import entries, omega_micro
 from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
@@ -24,18 +23,23 @@ class ClassicCut(CutFinder):
     """Depth-first cut finder. Budgets per dispatch and receiver: ``steps`` node visits,
     ``list_cap`` accepted nodes and ``splat_budget`` micro-buffer entry tests, together below
     LOOP_LIMIT (checked). ``stop_factor`` = 4 is Section 5.3's 4 Omega; nodes straddling the
-    receiver's horizon are refined down to ``horizon_factor`` x Omega."""
+    receiver's horizon are refined down to ``horizon_factor`` x Omega. ``workgroup``: the
+    walk's local size (CUT_WORKGROUP in pbgi_classic.glsl; Hybrid's block walk takes a smaller
+    one, app/pbgi/farfield.py: FAR_WORKGROUP)."""
 
     clears_microbuffers = False       # the walk writes only the entries its nodes cover
 
     def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768, list_cap: int = 256,
                  stop_factor: float = 4.0, horizon_factor: float = 1.0, max_rounds: int = 100000,
-                 defines: dict | None = None):
+                 defines: dict | None = None, workgroup: int = WORKGROUP):
         if steps + splat_budget + list_cap >= LOOP_LIMIT:
             raise ValueError("steps + splat_budget must stay below llvmpipe's loop limit")
         self.ctx = ctx
+        self.workgroup = int(workgroup)
         self.prog = load_compute(ctx, "pbgi_classic.glsl",
-                                 defines={"LIST_CAP": int(list_cap), **(defines or {})})
+                                 defines={"LIST_CAP": int(list_cap), **(defines or {}),
+                                          **({} if self.workgroup == WORKGROUP
+                                             else {"CUT_WORKGROUP": self.workgroup})})
         self.steps, self.splat_budget = int(steps), int(splat_budget)
         self.stop_factor, self.horizon_factor = float(stop_factor), float(horizon_factor)
         self.max_rounds = int(max_rounds)
@@ -86,7 +90,7 @@ class ClassicCut(CutFinder):
             prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
         nodes.set_uniforms(prog)
-        groups = dispatch_groups(count)
+        groups = -(-count // self.workgroup)
         rounds, remaining = 0, count
         while remaining and rounds < self.max_rounds:
             self.counter.write(b"\0\0\0\0")

@@ -115,6 +115,13 @@ MAX_CHUNK = 512               # blocks walked per chunk: bounds the block micro-
                               # per batch and 3-6% more of the frame (demo close-up, Hybrid:
                               # 128 / M 16 149-150 -> 144-145 ms, 256 / M 24 754-811 -> 723-754,
                               # 512 / M 24 2488-2512 -> 2324-2377; the same images bit for bit)
+# Work-group size of the blocks' far walk (the near walk keeps gpu_layout.WORKGROUP, 64): a
+# viewer tile holds a few dozen blocks, one 64-wide work group, which llvmpipe runs on one core;
+# at 8 (its SIMD width) they spread over both. The layer of the 1280x800 close-up refined in
+# 64 x 16 tiles: far walk 1265-1328 -> 896-934 ms, the tiles 3106-3154 -> 2410-2580 ms; whole
+# frames 0-3% faster (128 / M 16, 256 and 512 / M 24); the same images bit for bit. 8 for the
+# near walk too was slower (its tiles hold about a thousand receivers).
+FAR_WORKGROUP = 8
 INF = 3.0e38
 # GPU bytes besides the block micro-buffers: per receiver the near walk's resume state, ball and
 # frame, block index and the gather's frame; per block its pseudo-receiver record, ball and frame
@@ -281,7 +288,8 @@ class FarFieldShare(CutFinder):
         self.tolerance, self.max_level = float(tolerance), int(max_level)
         self.max_cone = float(max_cone)
         self.share_fraction = float(share_fraction)
-        self.far = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 1})
+        self.far = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 1},
+                              workgroup=FAR_WORKGROUP)
         self.near = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 2})
         self.merge = load_compute(ctx, "pbgi_share_merge.glsl")
         self.block_mb = MicroBuffers(ctx)

@@ -654,7 +654,7 @@ class ViewerEngine:
             self.timings["compare_metrics_ms"] = (time.perf_counter() - t) * 1e3
 
     def _upload_gi(self):
-        """Send what the GI layers changed to their textures. Returns the screen rectangle
+        """Send what the GI layers changed to their textures. Returns the screen rectangles
         (x0, y0, x1, y1), row 0 at the top, that A's new tiles can change in the composite
         when they are all that changed (else None: the whole asset)."""
         if self.gi.full is None:
@@ -687,18 +687,29 @@ class ViewerEngine:
 
     def _screen_bounds(self, rects):
         """The screen pixels the composite's upsampling of A's layer reads ``rects`` (layer
-        texels, top-left x, y, w, h) for: their bounding box scaled to the window, grown by the
-        2 x 2 taps of lib/joint_bilateral.glsl and a pixel of rounding."""
+        texels, top-left x, y, w, h) for: per band of rows (a strip's tiles share their rows),
+        the bounding box of its tiles scaled to the window, grown by the 2 x 2 taps of
+        lib/joint_bilateral.glsl and a pixel of rounding. One box per band, not one for the
+        frame: the refinement runs the centre rows first, alternating above and below, so a
+        frame's tiles can lie in two strips far apart, and the box around both covered the
+        rows between them (about 20 ms a frame of compositing where the bands took 5)."""
         layer = self.gi.camera
         sx, sy = self.size[0] / layer.width, self.size[1] / layer.height
         pad = int(np.ceil(max(sx, sy))) + 2
-        x0 = min(r[0] for r in rects)
-        y0 = min(r[1] for r in rects)
-        x1 = max(r[0] + r[2] for r in rects)
-        y1 = max(r[1] + r[3] for r in rects)
-        return (max(int(np.floor(x0 * sx)) - pad, 0), max(int(np.floor(y0 * sy)) - pad, 0),
-                min(int(np.ceil(x1 * sx)) + pad, self.size[0]),
-                min(int(np.ceil(y1 * sy)) + pad, self.size[1]))
+        bands: dict = {}
+        for r in rects:
+            bands.setdefault((r[1], r[3]), []).append(r)
+        out = []
+        for group in bands.values():
+            x0 = min(r[0] for r in group)
+            y0 = min(r[1] for r in group)
+            x1 = max(r[0] + r[2] for r in group)
+            y1 = max(r[1] + r[3] for r in group)
+            out.append((max(int(np.floor(x0 * sx)) - pad, 0),
+                        max(int(np.floor(y0 * sy)) - pad, 0),
+                        min(int(np.ceil(x1 * sx)) + pad, self.size[0]),
+                        min(int(np.ceil(y1 * sy)) + pad, self.size[1])))
+        return out
 
     def _label(self, cam: Camera):
         if self.renderer_available or self.mesh is None:
@@ -715,36 +726,38 @@ class ViewerEngine:
         return (cx - lw // 2, cam.height - (cy + lh // 2), lw, lh)
 
     def _composite(self, cam: Camera, room: bool = True, only=None) -> None:
-        """Composite the picture: the room too when ``room``; the asset's pixels inside
-        ``only`` (x0, y0, x1, y1, row 0 at the top) alone when given - the new tiles of a
-        refinement frame, whose whole-asset composite at 1280x800 cost llvmpipe about as much
+        """Composite the picture: the room too when ``room``; the asset's pixels inside the
+        boxes ``only`` ((x0, y0, x1, y1), row 0 at the top) alone when given - the new tiles of
+        a refinement frame, whose whole-asset composite at 1280x800 cost llvmpipe about as much
         as the tiles themselves."""
         s = self.session.settings
         label = self._label(cam)
         rect = None if self.mesh is None else screen_rect(cam, *self.mesh.bounds())
+        rects = [rect]
         if rect is not None and only is not None and not room and label is None:
-            x0, y0 = max(rect[0], only[0]), max(rect[1], only[1])
-            x1, y1 = min(rect[0] + rect[2], only[2]), min(rect[1] + rect[3], only[3])
-            if x1 <= x0 or y1 <= y0:
-                self._composite_dirty = self._asset_dirty = False
-                return
-            rect = (x0, y0, x1 - x0, y1 - y0)
+            rects = []
+            for box in only:
+                x0, y0 = max(rect[0], box[0]), max(rect[1], box[1])
+                x1, y1 = min(rect[0] + rect[2], box[2]), min(rect[1] + rect[3], box[3])
+                if x1 > x0 and y1 > y0:
+                    rects.append((x0, y0, x1 - x0, y1 - y0))
         # a failed relighting shows the placeholder hatch (the reason is in the messages), so
         # the asset never silently vanishes from the picture
         kw = dict(raw_room=self.cloud.false_colour(s["view.cloud"]),
                   unavailable=not self.renderer_available or self.gi_failed,
-                  asset_rect=rect, label_rect=label, room=room,
-                  false_colour=s["view.false_colour"])
-        if not self._b_active:
-            self.view.composite(cam, s["view.exposure"], s["view.tonemap"], **kw)
-        else:       # A left of the divider, B right of it, each side its own dispatch
-            w = self.size[0]
-            x = split_column(s["compare.split"], w)
-            self.view.composite(cam, s["view.exposure"], s["view.tonemap"], columns=(0, x),
-                                divider=x, **kw)
-            self.view.composite(cam, s["view.exposure"], s["view.tonemap"], columns=(x, w),
-                                divider=x, side=self.view.side_b, **kw)
-            self.view.draw_side_labels(label_rects(x, w, *self.view.side_label_sizes))
+                  label_rect=label, room=room, false_colour=s["view.false_colour"])
+        for rect in rects:
+            if not self._b_active:
+                self.view.composite(cam, s["view.exposure"], s["view.tonemap"], asset_rect=rect,
+                                    **kw)
+            else:       # A left of the divider, B right of it, each side its own dispatch
+                w = self.size[0]
+                x = split_column(s["compare.split"], w)
+                self.view.composite(cam, s["view.exposure"], s["view.tonemap"], columns=(0, x),
+                                    divider=x, asset_rect=rect, **kw)
+                self.view.composite(cam, s["view.exposure"], s["view.tonemap"], columns=(x, w),
+                                    divider=x, side=self.view.side_b, asset_rect=rect, **kw)
+                self.view.draw_side_labels(label_rects(x, w, *self.view.side_label_sizes))
         self._composite_dirty = self._asset_dirty = False
 
     # -- the asset's shadow and bounce on the scan ---------------------------------------------

@@ -58,11 +58,14 @@ def test_the_first_preview_shows_a_small_asset_at_a_low_gi_scale(ctx, renders):
 
 
 def test_refinement_frames_composite_only_their_tiles_and_miss_nothing(ctx, renders):
-    """A refinement frame composites only the screen rectangle its new tiles can change (the
-    upsampling's taps included); frame after frame the picture is the whole composite's, bit
-    for bit, at a layer scale below 1 too."""
+    """A refinement frame composites only the screen rectangles its new tiles can change (the
+    upsampling's taps included; one per band of rows, so tiles in two strips far apart do not
+    composite the rows between them); frame after frame the picture is the whole composite's,
+    bit for bit, at a layer scale below 1 too, and with a budget that takes several strips a
+    frame."""
     from tests.support.viewer import small_session
-    for scale in (1.0, 0.5):
+    many = 0
+    for scale, budget in ((1.0, 5.0), (0.5, 5.0), (1.0, 60.0)):
         e = make_engine(ctx, (96, 72), session=small_session(**{"pbgi.render_scale": scale,
                                                                 "pbgi.differential": False}))
         e.frame()
@@ -70,7 +73,9 @@ def test_refinement_frames_composite_only_their_tiles_and_miss_nothing(ctx, rend
         real = e.view.composite
         e.view.composite = lambda *a, **k: (calls.append(k.get("asset_rect")), real(*a, **k))[1]
         while e.gi.refining:
-            e.frame(budget_ms=5.0)
+            n = len(calls)
+            e.frame(budget_ms=budget)
+            many += len(calls) - n > 1
             tiled = e.view.read_linear()
             real(e.camera(), e.session.settings["view.exposure"],
                  e.session.settings["view.tonemap"], raw_room=False, unavailable=False,
@@ -79,6 +84,7 @@ def test_refinement_frames_composite_only_their_tiles_and_miss_nothing(ctx, rend
         full = screen_rect_of(e)
         assert any(r is not None and r[2] * r[3] < full[2] * full[3] for r in calls), calls
         e.release()
+    assert many > 0                                    # some frame composited several bands
 
 
 def screen_rect_of(e):

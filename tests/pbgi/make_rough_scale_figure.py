@@ -1,0 +1,71 @@
+"""The README's before/after figure of the GI scale per scene (``pbgi.rough_render_scale``):
+docs/rough_scale.png.
+
+    python tests/pbgi/make_rough_scale_figure.py [--out docs/rough_scale.png]
+
+Per case (the trade-off bench's rooms and rough materials, 256 x 256 close-ups): the path-traced
+reference (app/bench/tradeoff.py's, cached; Mitsuba 3 renders it if it is missing), the
+`balanced` preset before (Hybrid M 24, GI at full resolution) and after (GI at 1/2, the scale
+it now takes for a rough scene), and each one's |image - reference| x 5 over the asset, both 4x4-pooled (the reference's
+own noise averages out), tone mapped alike.
+Prints each image's 4x4-pooled relative RMSE (the bench's evaluate).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from app.bench import tradeoff as T  # noqa: E402
+from app.io.images import write_png  # noqa: E402
+from app.pbgi.renderer import Relighter  # noqa: E402
+from app.render.tonemap import tonemap_to_srgb8  # noqa: E402
+
+CASES = (("demo", "diffuse"), ("demo", "rough_metal"), ("apartment", "rough_metal"))
+SETTINGS = (T.make_setting("hybrid", 1.0, m=24), T.make_setting("hybrid", 0.5, m=24))
+
+
+def _pool4(rgb: np.ndarray) -> np.ndarray:
+    """4x4 block means, repeated back to the image's size (sides multiples of 4)."""
+    h, w = rgb.shape[:2]
+    m = rgb.reshape(h // 4, 4, w // 4, 4, 3).mean(axis=(1, 3))
+    return np.repeat(np.repeat(m, 4, 0), 4, 1)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="docs/rough_scale.png")
+    args = ap.parse_args()
+    rows = []
+    for room, kind in CASES:
+        cloud, mesh, cam = T.scene(room)
+        rl = Relighter()
+        rl.set_cloud(cloud)
+        rl.set_asset(mesh)
+        ref = T.reference(room, kind, rl, cloud, mesh, cam, T.SPP[room], T.reference_dir())
+        images = [T.render_setting(rl, cam, T.material(kind), s)[0] for s in SETTINGS]
+        rl.release()
+        ev = -float(np.log2(max(np.percentile(ref.image[..., :3], 99), 1e-6)))
+        on = images[0][..., 3] > 0.5                      # the asset's pixels
+        mean = float(ref.image[..., :3][on].mean())
+        tiles = [tonemap_to_srgb8(im[..., :3], ev) for im in [ref.image] + images]
+        for s, im in zip(SETTINGS, images):
+            # over the asset, 4x4-pooled as the error is (the reference's own noise averages out)
+            diff = np.abs(_pool4(im[..., :3]) - _pool4(ref.image[..., :3])) * 5.0 * on[..., None]
+            tiles.append(tonemap_to_srgb8(diff, -float(np.log2(max(mean, 1e-6)))))
+            err = T.evaluate(im, ref.image)
+            print(f"{room} {kind} {s.name}: {100 * err['rel_rmse_4x4']:.2f}% 4x4, "
+                  f"{100 * err['rel_rmse']:.2f}% per pixel")
+        rows.append(np.concatenate(tiles, axis=1))
+    write_png(args.out, np.concatenate(rows, axis=0))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

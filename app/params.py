@@ -241,8 +241,8 @@ PARAMS: tuple[Param, ...] = (
     # -- PBGI: RenderParams, plus the viewer-only render_scale, preview_scale, frame_budget_ms -----
     _c("pbgi.quality", DEFAULT_QUALITY, "Quality preset: sets the mode, micro-buffer size, GI "
        "render scale, rough scenes' GI scale, parallax tolerance and node stop factor together, "
-       "from the measured speed/accuracy trade (preview: fastest, final: most accurate); 'custom' once one of them "
-       "is changed by hand.", (*QUALITY_PRESETS, CUSTOM_QUALITY), label="quality", redo="none"),
+       "from the measured speed/accuracy trade (preview: fastest, final: most accurate); "
+       "'custom' once one of them is changed by hand.", (*QUALITY_PRESETS, CUSTOM_QUALITY), label="quality", redo="none"),
     _c("pbgi.mode", "hybrid", "Classic: one hierarchy walk per pixel. Mipmapped: walks shared "
        "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "
        "near field per pixel (several times faster). Environment map: one cube map from the "

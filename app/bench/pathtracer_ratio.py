@@ -197,8 +197,8 @@ def settings() -> list:
     for name, values in QUALITY_PRESETS.items():
         p = dict(values)
         scale = float(p.pop("pbgi.render_scale"))
-        rough = float(p.pop("pbgi.rough_render_scale"))
-        out.append(T.Setting(name, tuple(p.items()), scale, None if rough >= scale else rough))
+        rough = float(p.pop("pbgi.rough_render_scale"))     # gi_scale takes the lower
+        out.append(T.Setting(name, tuple(p.items()), scale, rough))
     return out + [T.make_setting(mode, m=MODE_M) for mode in ("classic", "hybrid")]
 
 

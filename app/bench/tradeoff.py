@@ -264,8 +264,7 @@ def evaluate(image: np.ndarray, ref: np.ndarray) -> dict:
 def render_setting(rl, camera, mat, setting: Setting):
     """One frame of ``setting``: the image (h, w, 4) and the render's completion flag."""
     from app.pbgi.renderer import RenderParams
-    from app.pbgi.upsample import render_upsampled
-    from app.pbgi.upsample import gi_scale
+    from app.pbgi.upsample import gi_scale, render_upsampled
     params = RenderParams.from_dict(setting.params)
     scale = (setting.scale if setting.rough_scale is None else
              gi_scale(setting.scale, setting.rough_scale, [mat], params.glossy_below))

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.pbgi.gpu_layout import CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT, WORKGROUP
+from app.pbgi.gpu_layout import (CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT, WORKGROUP,
+                                 dispatch_groups)
 from app.pbgi.microbuffer import entries, omega_micro
 from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
@@ -90,7 +91,7 @@ class ClassicCut(CutFinder):
             prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
         nodes.set_uniforms(prog)
-        groups = -(-count // self.workgroup)
+        groups = dispatch_groups(count, self.workgroup)
         rounds, remaining = 0, count
         while remaining and rounds < self.max_rounds:
             self.counter.write(b"\0\0\0\0")

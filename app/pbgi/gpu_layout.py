@@ -98,9 +98,9 @@ LOOP_LIMIT = 65535   # llvmpipe: loop iterations per invocation, all loops toget
                      # it leaves the shader silently (every bounded walk stays below it)
 
 
-def dispatch_groups(n: int) -> int:
-    """Work groups for one invocation per item (``WORKGROUP`` invocations each)."""
-    return (int(n) + WORKGROUP - 1) // WORKGROUP
+def dispatch_groups(n: int, size: int = WORKGROUP) -> int:
+    """Work groups for one invocation per item (``size`` invocations each)."""
+    return (int(n) + int(size) - 1) // int(size)
 
 
 # -- receivers and materials ----------------------------------------------------------------------

@@ -82,7 +82,8 @@ def test_presets_make_valid_render_params():
     for name, preset in QUALITY_PRESETS.items():
         p = RenderParams.from_settings({**Settings().to_dict(), **preset}).validated()
         assert p.mode == preset["pbgi.mode"], name
-    assert set(QUALITY_KEYS) <= set(RENDER_KEYS) | {"pbgi.render_scale", "pbgi.rough_render_scale"}
+    assert set(QUALITY_KEYS) <= (set(RENDER_KEYS)
+                                 | {"pbgi.render_scale", "pbgi.rough_render_scale"})
 
 
 # -- the trade-off bench's bookkeeping --------------------------------------------------------

@@ -7,7 +7,10 @@
 // solid angle about the receiver's own normal, max(n . F_k, 0) with F_k the integral of w over the
 // entry's region (app/pbgi/microbuffer.py's flux table; = Omega_ij (n . w_ij) for A = n). Only
 // entries the receiver's horizon cuts are approximate, and directions above n's horizon but
-// below A's are missing: a sliver as wide as the angle between n and A.
+// below A's are missing: a sliver as wide as the angle between n and A. The entries copied from the
+// block (MB_FAR_BIT: the shared far field) are scaled by the frame's level (its block's,
+// app/pbgi/block_levels.py: the far field's quantisation error traded for its neighbours' mean);
+// the receiver's own near field and the lobe buffers are not shared and keep theirs.
 // L_k comes from the micro-buffer (the node's float32 colour) or, with RADIANCE_CUBEMAP, from the
 // environment cube map in the same direction (the look-dev baseline): the two differ only in
 // where the incoming radiance is read, never in how it is integrated.
@@ -92,6 +95,7 @@ void gather_parts_add(inout GatherParts P, PrincipledParts r, vec3 Lw) {
     P.sheen += r.fh * Lw;
     gather_parts_add_lobes(P, r, Lw);
 }
+
 // The receiver's own factors on the parts: what principled_lobes_prepared multiplies in.
 vec3 gather_parts_radiance(PrincipledPrepared q, GatherParts P) {
 #ifdef PRINCIPLED_NO_SHEEN
@@ -116,6 +120,7 @@ void main() {
     vec3 A = frame_normal(i);
     orthonormal_basis(A, T, B);
     vec3 n_local = vec3(dot(N, T), dot(N, B), dot(N, A));   // the receiver's normal, A's frame
+    vec3 level = frame_level(i);                              // on the block's far entries
 #else
     vec3 A = N;
 #endif
@@ -158,7 +163,14 @@ void main() {
 #else
         uint node = mb_load(i, k).node;
         if (node == MB_EMPTY) continue;
+#ifdef FRAME_NORMALS
+        bool far = node >= MB_FAR_BIT;
+        node &= ~MB_FAR_BIT;
+#endif
         vec3 L = node_radiance(node, w, asset_dir_first, asset_dir_width);
+#ifdef FRAME_NORMALS
+        if (far) L *= level;
+#endif
 #endif
 #if defined(GATHER_PARTS)
         PrincipledParts r = principled_parts_prepared(Q, w);

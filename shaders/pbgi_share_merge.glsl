@@ -5,7 +5,9 @@
 // entry; the gather weights each entry with the receiver's own cosine (FRAME_NORMALS in
 // pbgi_gather.glsl). The renderer does not empty these micro-buffers first (the copy writes every
 // entry, empty ones included); a dispatch with u_clear_unshared empties the rows of receivers
-// without a block (share_block(i) == SHARE_NONE) instead.
+// without a block (share_block(i) == SHARE_NONE) instead. A copied entry's node gets MB_FAR_BIT, so
+// the gather can tell the shared far field (scaled by the block's level, app/pbgi/block_levels.py)
+// from the receiver's own near field.
 #include "lib/microbuffer.glsl"
 #include "gen/block_of.glsl"
 
@@ -33,6 +35,9 @@ void main() {
     }
     if (b == SHARE_NONE || b < u_block0 || b >= u_block1) return;
     int row = int(b - u_block0);
-    for (uint k = 0u; k < mm; ++k)
-        imageStore(mb_image, ivec2(int(k), int(i)), imageLoad(share_image, ivec2(int(k), row)));
+    for (uint k = 0u; k < mm; ++k) {
+        MbEntry e = mb_entry_unpack(imageLoad(share_image, ivec2(int(k), row)).xy);
+        if (e.node != MB_EMPTY) e.node |= MB_FAR_BIT;
+        mb_entry_store(ivec2(int(k), int(i)), e);
+    }
 }

@@ -69,6 +69,7 @@ def parts(s) -> dict:
            "gather_ms": s.ms_gather}
     if s.share is not None:
         out["far_ms"], out["near_ms"] = s.share.ms_share_far, s.share.ms_share_near
+        out["levels_ms"] = s.share.ms_share_levels
     out["other_ms"] = max(s.ms - s.ms_gbuffer - s.ms_cut - s.ms_lobe - s.ms_gather, 0.0)
     out["receivers"] = s.receivers
     out["visits_per_receiver"] = float(s.nodes_visited)
@@ -122,7 +123,8 @@ def markdown(records: list[dict]) -> str:
         pct = (lambda k: f"{m[k]:.0f} ({100 * m[k] / m['ms']:.0f}%)" if m["ms"] > 0 else "-")
         cut = pct("cut_ms")
         if "far_ms" in m:
-            cut += f" [far {m['far_ms']:.0f}, near {m['near_ms']:.0f}]"
+            cut += (f" [far {m['far_ms']:.0f}, levels {m.get('levels_ms', 0.0):.0f}, "
+                    f"near {m['near_ms']:.0f}]")
         lines.append(f"| {c['mode']} | {c['material']} | {m['ms']:.0f} | {pct('gbuffer_ms')} | "
                      f"{cut} | {pct('lobe_ms')} | {pct('gather_ms')} | {pct('other_ms')} | "
                      f"{m['visits_per_receiver']:.0f} | {m['tests_per_receiver']:.0f} | "

@@ -196,7 +196,8 @@ def _metrics(s, wall: float) -> dict:
     if sh is not None:
         out.update(share_blocks=sh.share_blocks, share_receivers=sh.share_receivers,
                    share_block_visits=sh.share_block_visits, ms_share_far=sh.ms_share_far,
-                   ms_share_near=sh.ms_share_near)
+                   ms_share_levels=sh.ms_share_levels, ms_share_near=sh.ms_share_near,
+                   share_levelled=sh.share_levelled)
     if p is not None and s.receivers:
         out["walk_visited_per_receiver"] = p.walk_visited / s.receivers
     return out

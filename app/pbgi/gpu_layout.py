@@ -86,6 +86,8 @@ BSH_TEX_WIDTH = 4096          # texels per row of the node textures (node i: i %
 MIP_WIDTH = 4096              # texels per row of the pyramid and pair-stream images
 NIL = 0xFFFFFFFF              # "none" in the pyramid and the pair streams (parent, list end)
 MB_EMPTY = 0xFFFFFFFF         # an empty micro-buffer entry (key and node)
+MB_FAR_BIT = 0x80000000       # in an entry's node: copied from a far-field block (Hybrid's merge;
+                              # the gather scales those by the block's level, block_levels.py)
 SHARE_NONE = 0xFFFFFFFF       # a receiver without a far-field block
 WALK_DONE = 1                 # walk state flags: the walk has finished
 WALK_CUT_SHORT = 2            # ... a loop of it was cut short by the driver (llvmpipe)
@@ -277,7 +279,8 @@ BSH_COLOR = Record("BshColor", (
 # -- the micro-buffers ----------------------------------------------------------------------------
 MB_ENTRY = Record("MbEntry", (
     Field("key", "uint", "depth key: the depth's float bits, tie-break in the low bits"),
-    Field("node", "uint", "the node seen through the entry"),
+    Field("node", "uint", "the node seen through the entry; | MB_FAR_BIT: a far-field "
+                          "block's, copied by Hybrid's merge"),
 ), word="uint", slot_words=2, doc="micro-buffer texel (MB_EMPTY in both: empty)")
 
 MB_DIRECTION = Record("MbDirection", (
@@ -312,6 +315,9 @@ BLOCK_OF = Record("BlockOf", (
 
 FRAME = Record("Frame", (
     Field("normal", "vec3", "unit normal whose frame the receiver's micro-buffer is in"),
+    Pad(1),
+    Field("level", "vec3", "factor on the micro-buffer's gather: its block's level "
+                           "(app/pbgi/block_levels.py), 1 for a receiver without a block"),
     Pad(1),
 ), word="float", doc="the gather's micro-buffer frame per batch receiver")
 
@@ -373,6 +379,7 @@ def bindings_glsl() -> str:
 #define MIP_WIDTH_LOG2 {_log2(MIP_WIDTH)}u
 #define NIL {_u(NIL)}        // no pixel / no item (pyramid, pair streams)
 #define MB_EMPTY {_u(MB_EMPTY)}   // empty micro-buffer entry (key and node)
+#define MB_FAR_BIT {_u(MB_FAR_BIT)}  // entry node: copied from a far-field block (Hybrid)
 #define SHARE_NONE {_u(SHARE_NONE)} // receiver without a far-field block
 #define WALK_DONE {_u(WALK_DONE)}           // walk state flags
 #define WALK_CUT_SHORT {_u(WALK_CUT_SHORT)}

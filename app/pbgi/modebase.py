@@ -120,6 +120,7 @@ class Batch:
     width: int = 1                    # tile width (the pixel index of a receiver is row-major)
     budget_bytes: float = 1 << 30     # what the finder's own buffers may take
     pass_index: int = 0               # the render's pass
+    environment: Any = None           # Frame.environment (Hybrid's block levels), or None
 
 
 @dataclass
@@ -298,7 +299,7 @@ class MicroBufferMode(RenderMode):
                     batches.append(cut.fill(Batch(
                         held.buffers, frame.receivers, first, count, m, frame.nodes,
                         frame.cell_size, width=frame.tile[2], budget_bytes=cut_budget,
-                        pass_index=frame.pass_index)))
+                        pass_index=frame.pass_index, environment=frame.environment)))
                 except REFUSED as exc:
                     if per <= 1:
                         raise ScanlightError(None, f"out of GPU memory even for one receiver "

@@ -248,7 +248,8 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
     a ragged band: adjacent-pixel differences across the block grid are below 1.8x those inside
     (measured 1.48x; square blocks 2.55x, Classic M = 16 1.10x), and the 4x4-pooled error
     against Classic at M = 32 is Classic M = 16's within 1.5 points (measured 5.2% against
-    4.4%; square blocks 6.6%)."""
+    4.4%; square blocks 6.6%). Measured without the block levels, which take out most of what
+    is left (tests/pbgi/test_block_levels.py) - of the square blocks' steps too (1.84x)."""
     from app.bench.image_metrics import relative_rmse
     from tests.support.block_steps import block_steps
     from app.demo.room import default_views
@@ -261,6 +262,7 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
     p = RenderParams(mode="hybrid", microbuffer=16)
     finder = r.mode_for(p).cut
     got = {}
+    finder.level_fit = False
     try:
         for dither in (True, False):
             finder.dither = dither
@@ -271,6 +273,7 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
                            relative_rmse(res.image, ref, mask, pool=4))
     finally:
         finder.dither = True
+        finder.level_fit = True
     assert got[True][0] < 1.8
     assert got[False][0] > 2.2                     # the square blocks this test guards against
     assert got[True][1] < relative_rmse(classic, ref, mask, pool=4) + 0.015

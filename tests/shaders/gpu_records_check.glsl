@@ -191,6 +191,7 @@ void main() {
     put(share_block(i));
 #elif MODE == 11
     put(frame_normal(i));
+    put(frame_level(i));
 #elif MODE == 12
     gather_output_store(i, GatherOutput(vec3(float(i), float(i) + 0.5, -float(i)),
                                         (i & 1u) == 0u ? 1.0 : -1.0));

@@ -43,7 +43,8 @@ from __future__ import annotations
 
 import numpy as np
 
-NONE = 0xFFFFFFFF
+from app.pbgi.brdf import orthonormal_basis
+from app.pbgi.gpu_layout import SHARE_NONE
 REACH = 2.0            # neighbours up to this x the block's side (pixels) away on screen
 GATE_COS = 0.95        # ... whose normal is within acos(0.95) = 18 degrees of the block's
 MIN_NEIGHBOURS = 6     # blocks that must count (the block itself included) for a fit
@@ -55,7 +56,7 @@ DEPTH_SLACK = 2.0      # a neighbour may be this x the expected world distance a
 def screen_centres(pixels: np.ndarray, block_of: np.ndarray, blocks: int,
                    width: int) -> tuple[np.ndarray, np.ndarray]:
     """Per block, the mean (x, y) pixel of its receivers (blocks, 2) and its receiver count."""
-    has = block_of != NONE
+    has = block_of != SHARE_NONE
     b = block_of[has].astype(np.int64)
     px = np.asarray(pixels, np.int64)[has]
     cnt = np.bincount(b, minlength=blocks).astype(np.float64)
@@ -63,14 +64,6 @@ def screen_centres(pixels: np.ndarray, block_of: np.ndarray, blocks: int,
     xy = np.stack([np.bincount(b, px % width, blocks) / safe,
                    np.bincount(b, px // width, blocks) / safe], 1)
     return xy, cnt
-
-
-def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors orthogonal to each unit row of n (and to each other)."""
-    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t = np.cross(n, helper)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    return t, np.cross(n, t)
 
 
 def neighbour_pairs(xy: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -117,7 +110,7 @@ def block_levels(values: np.ndarray, axis: np.ndarray, centre: np.ndarray, rho: 
     per_px = rho[a] * np.sqrt(2.0) / side[a]
     w *= (np.linalg.norm(centre[b] - centre[a], axis=1)
           <= DEPTH_SLACK * d * per_px + 2.0 * rho[a] + rho[b])
-    t1, t2 = _tangents(axis)
+    t1, t2 = orthonormal_basis(axis)
     dn = axis[b] - axis[a]
     x = np.stack([np.ones(len(a)), np.einsum("ij,ij->i", dn, t1[a]),
                   np.einsum("ij,ij->i", dn, t2[a])], 1)

@@ -110,7 +110,6 @@ import numpy as np
 from app.material import Material
 from app.pbgi.block_levels import block_levels, screen_centres
 from app.pbgi.classic import ClassicCut
-from app.pbgi.gather import Gather
 from app.pbgi.gbuffer import material_table, r2_point
 from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, GATHER_OUTPUT, IMAGE, RECEIVER,
                                  SHARE_NONE, SHARE_ROW, SSBO, dispatch_groups)
@@ -324,7 +323,6 @@ class FarFieldShare(CutFinder):
         self.offset = (0, 0)          # the last batch's block-grid offset (grid_offset)
         self.dither = True            # dithered block membership (DITHER); False: square blocks
         self.level_fit = True         # block levels (app/pbgi/block_levels.py); False: all 1
-        self.gather = Gather(ctx)     # the blocks' irradiance for their levels
         # the last batch's blocks (choose_blocks), their E / pi and levels (tests, debugging)
         self.last_blocks = self.last_irradiance = self.last_levels = None
         self._bufs = []
@@ -386,7 +384,7 @@ class FarFieldShare(CutFinder):
         t_lv = 0.0                    # the block levels' share of the chunk loop
         env_bytes = 0                 # the room's cube map (the Relighter's, shared)
         levelled = (nb >= LEVEL_MIN_BLOCKS and self.level_fit
-                    and batch.environment is not None)
+                    and batch.environment is not None and batch.gather is not None)
         try:
             block_buf = self._buffer(block_of)
             self._merge(mb, block_buf, 0, count, NONE, NONE, clear=True)
@@ -420,16 +418,17 @@ class FarFieldShare(CutFinder):
                     peak_bytes = max(peak_bytes, self.block_mb.nbytes)
                     if levelled:        # the far field's irradiance at the block's centre
                         tl = time.perf_counter()
-                        self.gather.run(pseudo_buf, white, far_e, b0, b1 - b0, m, np.zeros(3),
-                                        mb=self.block_mb, nodes=nodes, irradiance=True)
+                        batch.gather.run(pseudo_buf, white, far_e, b0, b1 - b0, m,
+                                         np.zeros(3), mb=self.block_mb, nodes=nodes,
+                                         irradiance=True)
                         t_lv += time.perf_counter() - tl
             t2 = time.perf_counter()
             levels = np.ones((nb, 3))
             if levelled:            # ... over the room's, seen from the asset's centre
                 env = batch.environment(LEVEL_ENV_FACE)
                 env_bytes = env.nbytes
-                self.gather.run(pseudo_buf, white, env_e, 0, nb, m, np.zeros(3), env=env,
-                                irradiance=True)
+                batch.gather.run(pseudo_buf, white, env_e, 0, nb, m, np.zeros(3), env=env,
+                                 irradiance=True)
                 e = GATHER_OUTPUT.view(far_e.read())
                 e_env = GATHER_OUTPUT.view(env_e.read())
                 xy, cnt = screen_centres(rec["pixel"], block_of, nb, width)

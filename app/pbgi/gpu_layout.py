@@ -316,8 +316,8 @@ BLOCK_OF = Record("BlockOf", (
 FRAME = Record("Frame", (
     Field("normal", "vec3", "unit normal whose frame the receiver's micro-buffer is in"),
     Pad(1),
-    Field("level", "vec3", "factor on the micro-buffer's gather: its block's level "
-                           "(app/pbgi/block_levels.py), 1 for a receiver without a block"),
+    Field("level", "vec3", "factor on the entries copied from its block (MB_FAR_BIT): the "
+                           "block's level (app/pbgi/block_levels.py); 1 without a block"),
     Pad(1),
 ), word="float", doc="the gather's micro-buffer frame per batch receiver")
 

@@ -121,6 +121,7 @@ class Batch:
     budget_bytes: float = 1 << 30     # what the finder's own buffers may take
     pass_index: int = 0               # the render's pass
     environment: Any = None           # Frame.environment (Hybrid's block levels), or None
+    gather: Any = None                # Frame.gather (the same: the blocks' irradiance), or None
 
 
 @dataclass
@@ -299,7 +300,8 @@ class MicroBufferMode(RenderMode):
                     batches.append(cut.fill(Batch(
                         held.buffers, frame.receivers, first, count, m, frame.nodes,
                         frame.cell_size, width=frame.tile[2], budget_bytes=cut_budget,
-                        pass_index=frame.pass_index, environment=frame.environment)))
+                        pass_index=frame.pass_index, environment=frame.environment,
+                        gather=frame.gather)))
                 except REFUSED as exc:
                     if per <= 1:
                         raise ScanlightError(None, f"out of GPU memory even for one receiver "

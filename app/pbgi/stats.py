@@ -85,7 +85,7 @@ class ShareFigures(Figures):
     ms_share_blocks: float = 0.0      # choosing the blocks (CPU)
     ms_share_far: float = 0.0         # the far-field walks and copies
     ms_share_near: float = 0.0        # the per-receiver near-field walks
-    ms_share_levels: float = 0.0      # the blocks' near fields, irradiance and levels
+    ms_share_levels: float = 0.0      # the blocks' far-field and cube-map irradiance, the fit
     share_levelled: int = 0           # blocks whose level is not 1 (app/pbgi/block_levels.py)
     share_block_max: int = peak()     # receivers in the largest block
 

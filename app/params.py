@@ -302,12 +302,17 @@ PARAMS: tuple[Param, ...] = (
        "viewer's layer, refined in tiles when the view is idle, and `render`), brought back to "
        "full resolution by joint bilateral upsampling guided by the full-resolution G-buffer.",
        0.125, 1.0, "x", redo="gi"),
-    _f("pbgi.rough_render_scale", 0.5, "GI resolution when no material needs a lobe "
-       "micro-buffer (every roughness at or above pbgi.glossy_below, no clearcoat, no roughness "
-       "texture): diffuse and rough light is smooth across a surface, and the trade-off bench "
-       "measured half resolution as accurate as full at a third of the time; the lower of it "
-       "and render_scale applies. Narrow reflections keep render_scale (finer than a "
-       "low-resolution pixel).", 0.125, 1.0, "x", label="rough GI scale", redo="gi"),
+    _f("pbgi.rough_render_scale", 0.5, "GI resolution when every material's specular lobe is "
+       "at least pbgi.rough_scale_from rough (no roughness texture): that light is smooth "
+       "across a surface, and the trade-off bench measured half resolution as accurate as full "
+       "at a third of the time or less; the lower of it and render_scale applies. Narrower "
+       "reflections keep render_scale (finer than a low-resolution pixel).", 0.125, 1.0, "x",
+       label="rough GI scale", redo="gi"),
+    _f("pbgi.rough_scale_from", 0.35, "Roughness from which a specular lobe counts as rough for "
+       "pbgi.rough_render_scale (an anisotropic lobe by its narrow axis; a clearcoat does not "
+       "count: its lobe is weak). Measured per roughness against the path tracer (README, "
+       "'Speed against accuracy'); 1 = only fully rough materials.", 0.0, 1.0, "",
+       label="rough GI scale from", redo="gi", ui=False),
     _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "
        "with coverage-weighted bilinear filtering.", 0.0625, 1.0, "x", redo="gi"),
     _f("pbgi.stop_factor", 4.0, "A node is accepted into a receiver's micro-buffer once its solid "

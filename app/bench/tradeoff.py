@@ -17,7 +17,7 @@ glossy 0.25, near-mirror 0.05 and a clearcoat paint.
 Settings (``settings(grid)``): the full grid crosses Hybrid's micro-buffer size M (16, 24) with
 the GI render scale (1, 1/2, 1/4: the asset's GI rendered at that fraction of the resolution
 and brought back by joint bilateral upsampling, app/pbgi/upsample.py), adds Hybrid M = 24 at
-the scale per scene (1/2 where no material needs a lobe buffer, 1 where one does:
+the scale per scene (1/2 where every lobe counts as rough, 1 where one is narrow:
 ``pbgi.rough_render_scale``, app/pbgi/upsample.py's gi_scale), and varies the rest one
 at a time around Hybrid M = 16: M = 8, the parallax tolerance, the Omega_tr factor, the node
 stop factor (1 Omega against the paper's 4 Omega; also at M = 24), Classic (M 16 and 24, scale
@@ -85,7 +85,7 @@ class Setting:
     name: str
     values: tuple                     # ((key, value), ...): RenderParams overrides
     scale: float = 1.0
-    # the GI render scale where no material needs a lobe buffer (app/pbgi/upsample.py: gi_scale;
+    # the GI render scale where every lobe counts as rough (app/pbgi/upsample.py: gi_scale;
     # pbgi.rough_render_scale); None: ``scale`` for every material
     rough_scale: float | None = None
     # the materials it is measured on (None: every one): a "model only what the scene needs"
@@ -265,9 +265,12 @@ def render_setting(rl, camera, mat, setting: Setting):
     """One frame of ``setting``: the image (h, w, 4) and the render's completion flag."""
     from app.pbgi.renderer import RenderParams
     from app.pbgi.upsample import gi_scale, render_upsampled
+    from app.params import BY_KEY
     params = RenderParams.from_dict(setting.params)
+    rough_from = setting.params.get("pbgi.rough_scale_from",
+                                    BY_KEY["pbgi.rough_scale_from"].default)
     scale = (setting.scale if setting.rough_scale is None else
-             gi_scale(setting.scale, setting.rough_scale, [mat], params.glossy_below))
+             gi_scale(setting.scale, setting.rough_scale, [mat], rough_from))
     rl.forget_microbuffers()
     res = render_upsampled(rl, camera, [mat], params, 1, scale)
     return res.image, bool(res.stats.completed)

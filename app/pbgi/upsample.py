@@ -78,28 +78,39 @@ GiTexel gi_at(sampler2D tex, ivec2 p) {{ return gi_texel_unpack(texelFetch(tex, 
 
 
 def gi_scale(render_scale: float, rough_render_scale: float, materials,
-             glossy_below: float) -> float:
+             rough_from: float) -> float:
     """The GI's resolution relative to the image for these materials: ``render_scale``, or
-    ``rough_render_scale`` when it is lower and no material needs a lobe micro-buffer
-    (app/pbgi/lobe.py: needs_lobe - a specular lobe narrower than ``glossy_below``, a
-    clearcoat, a roughness texture). Why per scene: diffuse and rough light is smooth across a
-    surface and the upsampling loses nothing measurable there (README, "Speed against
-    accuracy": 1/2 within 1.0-1.12x of the full resolution's error at a third of the time),
-    while a narrow reflection is finer than a low-resolution pixel (the near-mirror's error
-    2.3x at 1/2). One scale per image, not per receiver: the viewer's layer and ``render``'s
-    upsampling take one, and an asset that mixes a glossy material with rough ones keeps
-    ``render_scale`` everywhere."""
-    from app.pbgi.lobe import needs_lobe
+    ``rough_render_scale`` when it is lower and every material is rough enough
+    (``rough_for_scale``). Why per scene: diffuse and rough light is smooth across a surface and
+    the upsampling loses little there (README, "Speed against accuracy": 1/2 within 1.0-1.12x
+    of the full resolution's error at a third of the time for rough light, and per roughness
+    for glossy metals), while a narrow reflection is finer than a low-resolution pixel (the
+    near-mirror's error 2.3x at 1/2). One scale per image, not per receiver: the viewer's layer
+    and ``render``'s upsampling take one, and an asset that mixes a near-mirror with rough
+    materials keeps ``render_scale`` everywhere."""
     scale = float(render_scale)
-    if needs_lobe(materials, glossy_below):
-        return scale
-    return min(scale, float(rough_render_scale))
+    if all(rough_for_scale(m, rough_from) for m in materials):
+        return min(scale, float(rough_render_scale))
+    return scale
+
+
+def rough_for_scale(material, rough_from: float) -> bool:
+    """Is this material's specular lobe wide enough for the rough GI scale? Its roughness along
+    the lobe's narrow axis (an anisotropic lobe's alpha_y = roughness^2 x aspect, app/pbgi/
+    brdf.py, is the isotropic alpha of roughness x sqrt(aspect)) at least ``rough_from``, and no
+    roughness texture (glTF multiplies it into the factor, so it can only be smoother). A
+    clearcoat does not count: its lobe is narrow but weak (at most 0.25 x 4% at normal
+    incidence), and the trade-off grid's gloss-0.9 coat measured as accurate at 1/2 as at 1."""
+    if material.metallic_roughness_texture is not None:
+        return False
+    aspect = math.sqrt(max(1.0 - 0.9 * float(material.anisotropic), 0.0))
+    return float(material.roughness) * math.sqrt(aspect) >= float(rough_from)
 
 
 def gi_scale_of(values, materials) -> float:
     """``gi_scale`` from a settings model or a dict of ``pbgi.*`` values."""
     return gi_scale(values["pbgi.render_scale"], values["pbgi.rough_render_scale"], materials,
-                    values["pbgi.glossy_below"])
+                    values["pbgi.rough_scale_from"])
 
 
 def scaled_camera(cam, scale: float):

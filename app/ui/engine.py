@@ -609,8 +609,8 @@ class ViewerEngine:
 
     def layer_scale(self, values) -> float:
         """The GI layer's resolution for these settings and the session's materials
-        (app/pbgi/upsample.py: gi_scale - ``pbgi.rough_render_scale`` while no material needs
-        a lobe micro-buffer, ``pbgi.render_scale`` otherwise)."""
+        (app/pbgi/upsample.py: gi_scale - ``pbgi.rough_render_scale`` while every material is
+        at least ``pbgi.rough_scale_from`` rough, ``pbgi.render_scale`` otherwise)."""
         from app.pbgi.upsample import gi_scale_of
         r = self.relighter
         if r is None or r.mesh is None:     # nothing to gather yet

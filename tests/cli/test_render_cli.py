@@ -21,7 +21,7 @@ def inputs(tmp_path_factory):
     save_cloud(S.box_room(0.1), d / "room.ply")
     (d / "obj.json").write_text(json.dumps({"mesh": "sphere", "translate": [0, 0.8, 0],
                                             "scale": 0.6}))
-    (d / "mat.json").write_text(json.dumps({"base_color": [0.8, 0.2, 0.1], "roughness": 0.4}))
+    (d / "mat.json").write_text(json.dumps({"base_color": [0.8, 0.2, 0.1], "roughness": 0.3}))
     (d / "cam.json").write_text(json.dumps({"position": [0.3, 1.0, 0.9], "look_at": [0, 0.8, 0],
                                             "fov_y_deg": 40, "width": 16, "height": 12}))
     return d

@@ -163,3 +163,38 @@ def test_a_mirror_sees_a_closed_room(sweep):
     used = 8 * 8                # one lobe takes 2/3 of each side (shaders/lib/lobe_size.glsl)
     assert (cells[:, :used] != MB_EMPTY).all(), (cells[:, :used] == MB_EMPTY).any(1).sum()
     assert (cells[:, used:] == MB_EMPTY).all()
+
+
+# measured at 96 px (Hybrid M 24, 4x4-pooled error at GI 1/2 over at 1, apartment / city):
+# metal 0.1 2.60 / 2.56, 0.2 2.25 / 2.00, 0.3 1.40 / 1.51, 0.5 0.96 / 1.07; dielectric 0.05-0.5
+# 0.97-1.13 (its lobe carries a few percent of the light)
+HALF_SCALE_ROUGH = 1.2       # a lobe counted rough: what half resolution may cost at most
+HALF_SCALE_NARROW = 1.7      # a metal lobe well below pbgi.rough_scale_from: what it does cost
+
+
+def test_half_resolution_gi_costs_rough_lobes_little_and_narrow_metals_much(room_sweep):
+    """Why pbgi.rough_scale_from (app/pbgi/upsample.py: gi_scale) sits where it does: against
+    the path tracer, the GI at half resolution (joint bilateral upsampling) is within 1.2x of
+    the full resolution's 4x4-pooled error for the lobes it counts as rough (metal and
+    dielectric at 0.5), and at least 1.7x worse for narrow metal lobes (0.1, 0.2), which it
+    keeps at full resolution: the reflected room is finer than a half-resolution pixel."""
+    from app.params import BY_KEY
+    from app.pbgi.renderer import RenderParams
+    from app.pbgi.upsample import render_upsampled, rough_for_scale
+    r, cam, room = room_sweep
+    rough_from = BY_KEY["pbgi.rough_scale_from"].default
+    params = RenderParams(mode="hybrid", microbuffer=24)
+
+    def pooled(mat, ref, scale):
+        r.forget_microbuffers()
+        img = render_upsampled(r, cam, [mat], params, 1, scale).image
+        mask = erode(img[..., 3] > 0.5, glossy.MASK_ERODE)
+        return relative_rmse(img, ref, mask, 4)
+
+    for kind, rough in (("metal", 0.5), ("dielectric", 0.5), ("metal", 0.1), ("metal", 0.2)):
+        mat, ref = glossy.material(kind, rough), glossy.load_reference(room, kind, rough)
+        ratio = pooled(mat, ref, 0.5) / pooled(mat, ref, 1.0)
+        if rough_for_scale(mat, rough_from):
+            assert ratio <= HALF_SCALE_ROUGH, (room, kind, rough, ratio)
+        else:
+            assert rough < 0.25 and ratio >= HALF_SCALE_NARROW, (room, kind, rough, ratio)

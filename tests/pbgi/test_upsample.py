@@ -121,24 +121,30 @@ def test_a_scale_outside_0_1_is_refused(room, scale):
 
 
 def test_the_gi_scale_follows_the_materials():
-    """pbgi.rough_render_scale applies while no material needs a lobe micro-buffer (roughness
-    at or above glossy_below, no clearcoat, no roughness texture); any narrow lobe in the scene
-    keeps render_scale for the whole image; the lower of the two wins."""
+    """pbgi.rough_render_scale applies while every material's specular lobe is at least
+    pbgi.rough_scale_from rough along its narrow axis (no roughness texture; a clearcoat does
+    not count); any narrower lobe in the scene keeps render_scale for the whole image; the
+    lower of the two wins."""
     from dataclasses import replace
     from app.material import Material
     from app.settings import Settings
     rough, glossy = S.diffuse(0.6, roughness=0.5), S.diffuse(0.6, roughness=0.3)
-    coat = replace(rough, clearcoat=0.5)
+    coat = replace(rough, clearcoat=1.0, clearcoat_gloss=1.0)
     textured = replace(rough, metallic_roughness_texture=np.ones((2, 2, 3), np.float32))
-    assert U.gi_scale(1.0, 0.5, [rough], 0.5) == 0.5
-    assert U.gi_scale(1.0, 0.5, [rough, rough], 0.5) == 0.5
-    for scene in ([glossy], [coat], [textured], [rough, glossy]):
-        assert U.gi_scale(1.0, 0.5, scene, 0.5) == 1.0
-    assert U.gi_scale(0.25, 0.5, [rough], 0.5) == 0.25      # render_scale is lower
-    assert U.gi_scale(0.5, 1.0, [glossy], 0.5) == 0.5
-    assert U.gi_scale(1.0, 0.5, [glossy], 0.2) == 0.5       # 0.3 is rough for glossy_below 0.2
+    # anisotropic 1: aspect sqrt(0.1), the narrow axis's alpha that of roughness 0.5 x 0.562
+    stretched = replace(rough, anisotropic=1.0)
+    assert U.gi_scale(1.0, 0.5, [rough], 0.35) == 0.5
+    assert U.gi_scale(1.0, 0.5, [rough, rough, coat], 0.35) == 0.5
+    for scene in ([glossy], [textured], [rough, glossy], [stretched]):
+        assert U.gi_scale(1.0, 0.5, scene, 0.35) == 1.0
+    assert U.gi_scale(1.0, 0.5, [stretched], 0.28) == 0.5
+    assert U.gi_scale(0.25, 0.5, [rough], 0.35) == 0.25     # render_scale is lower
+    assert U.gi_scale(0.5, 1.0, [glossy], 0.35) == 0.5
+    assert U.gi_scale(1.0, 0.5, [glossy], 0.2) == 0.5       # 0.3 counts as rough from 0.2
     s = Settings()                                          # the default preset, balanced
+    assert s["pbgi.rough_scale_from"] == 0.35
     assert U.gi_scale_of(s, [Material()]) == 0.5
+    assert U.gi_scale_of(s, [Material(roughness=0.35, metallic=1.0)]) == 0.5
     assert U.gi_scale_of(s, [glossy]) == 1.0
     s.set("pbgi.quality", "final")
     assert U.gi_scale_of(s, [Material()]) == 1.0

@@ -170,7 +170,8 @@ HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "b
 # Pareto front that ``scanlight bench tradeoff`` measures (README, "Speed against accuracy":
 # its suggest_presets picked these three from the full grid on both rooms and five materials -
 # preview the fastest within 2.5x the best error of every case, balanced within 1.5x, final
-# the least; re-run the bench when the renderer changes).
+# the least; re-run the bench when the renderer changes: final was Classic M 24 until Hybrid's
+# block levels made Hybrid M 24 the least, 1.08x against Classic's 1.28x).
 # ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
 # below), so a fresh viewer and a command line without --quality get exactly that preset.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {
@@ -180,7 +181,7 @@ QUALITY_PRESETS: dict[str, dict[str, Any]] = {
     "balanced": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
                  "pbgi.rough_render_scale": 0.5,
                  "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
-    "final": {"pbgi.mode": "classic", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
+    "final": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
               "pbgi.rough_render_scale": 1.0,
               "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
 }

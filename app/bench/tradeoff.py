@@ -325,8 +325,19 @@ def mark_fronts(records: list[dict], metric: str = "rel_rmse_4x4") -> None:
 # glossy issue's unmet target), so "within 12%" would leave no setting at all.
 BUDGETS = {"preview": 2.5, "balanced": 1.5, "final": None}
 # the settings app/params.py's QUALITY_PRESETS hold (circled on the plot)
-PRESET_SETTINGS = ("hybrid m=16 scale=1/2", "hybrid m=24 scale=1 rough=1/2",
-                   "classic m=24 scale=1")
+def preset_setting_name(name: str) -> str:
+    """The grid's name of quality preset ``name``'s setting (app/params.py QUALITY_PRESETS):
+    its mode, M and scales; its parallax tolerance and stop factor are the grid's defaults."""
+    from app.params import QUALITY_PRESETS
+    p = QUALITY_PRESETS[name]
+    scale, rough = float(p["pbgi.render_scale"]), float(p["pbgi.rough_render_scale"])
+    return make_setting(p["pbgi.mode"], scale, rough_scale=rough if rough < scale else None,
+                        m=p["pbgi.microbuffer"]).name
+
+
+def preset_setting_names() -> tuple:
+    from app.params import QUALITY_PRESETS
+    return tuple(preset_setting_name(n) for n in QUALITY_PRESETS)
 
 
 def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rmse_4x4",
@@ -395,6 +406,7 @@ def write_plot(records: list[dict], path, metric: str = "rel_rmse_4x4") -> None:
     from matplotlib import ticker
     rooms = sorted({r["room"] for r in records})
     mats = [m for m in MATERIALS if any(r["material"] == m for r in records)]
+    presets = preset_setting_names()
     fig, axes = plt.subplots(len(rooms), len(mats), figsize=(3.2 * len(mats), 3.0 * len(rooms)),
                              squeeze=False)
     for i, room in enumerate(rooms):
@@ -408,7 +420,7 @@ def write_plot(records: list[dict], path, metric: str = "rel_rmse_4x4") -> None:
             front = sorted((r["ms"], 100 * r[metric]) for r in rs if r.get("on_front"))
             # the presets' settings, circled
             for r in rs:
-                if r["setting"] in PRESET_SETTINGS:
+                if r["setting"] in presets:
                     ax.scatter([r["ms"]], [100 * r[metric]], s=60, facecolors="none",
                                edgecolors="k", lw=0.8)
             if front:

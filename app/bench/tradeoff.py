@@ -263,9 +263,9 @@ def evaluate(image: np.ndarray, ref: np.ndarray) -> dict:
 
 def render_setting(rl, camera, mat, setting: Setting):
     """One frame of ``setting``: the image (h, w, 4) and the render's completion flag."""
+    from app.params import BY_KEY
     from app.pbgi.renderer import RenderParams
     from app.pbgi.upsample import gi_scale, render_upsampled
-    from app.params import BY_KEY
     params = RenderParams.from_dict(setting.params)
     rough_from = setting.params.get("pbgi.rough_scale_from",
                                     BY_KEY["pbgi.rough_scale_from"].default)
@@ -324,20 +324,18 @@ def mark_fronts(records: list[dict], metric: str = "rel_rmse_4x4") -> None:
 # cannot work here: the near-mirror's error has a floor of about 19% in every setting (the
 # glossy issue's unmet target), so "within 12%" would leave no setting at all.
 BUDGETS = {"preview": 2.5, "balanced": 1.5, "final": None}
-# the settings app/params.py's QUALITY_PRESETS hold (circled on the plot)
-def preset_setting_name(name: str) -> str:
-    """The grid's name of quality preset ``name``'s setting (app/params.py QUALITY_PRESETS):
-    its mode, M and scales; its parallax tolerance and stop factor are the grid's defaults."""
-    from app.params import QUALITY_PRESETS
-    p = QUALITY_PRESETS[name]
-    scale, rough = float(p["pbgi.render_scale"]), float(p["pbgi.rough_render_scale"])
-    return make_setting(p["pbgi.mode"], scale, rough_scale=rough if rough < scale else None,
-                        m=p["pbgi.microbuffer"]).name
 
 
 def preset_setting_names() -> tuple:
+    """The grid's names of app/params.py's QUALITY_PRESETS settings (circled on the plot): their
+    mode, M and scales; their parallax tolerance and stop factor are the grid's defaults."""
     from app.params import QUALITY_PRESETS
-    return tuple(preset_setting_name(n) for n in QUALITY_PRESETS)
+    names = []
+    for p in QUALITY_PRESETS.values():
+        scale, rough = float(p["pbgi.render_scale"]), float(p["pbgi.rough_render_scale"])
+        names.append(make_setting(p["pbgi.mode"], scale, m=p["pbgi.microbuffer"],
+                                  rough_scale=rough if rough < scale else None).name)
+    return tuple(names)
 
 
 def suggest_presets(records: list[dict], budgets=BUDGETS, metric: str = "rel_rmse_4x4",

@@ -95,16 +95,17 @@ def gi_scale(render_scale: float, rough_render_scale: float, materials,
 
 
 def rough_for_scale(material, rough_from: float) -> bool:
-    """Is this material's specular lobe wide enough for the rough GI scale? Its roughness along
-    the lobe's narrow axis (an anisotropic lobe's alpha_y = roughness^2 x aspect, app/pbgi/
-    brdf.py, is the isotropic alpha of roughness x sqrt(aspect)) at least ``rough_from``, and no
-    roughness texture (glTF multiplies it into the factor, so it can only be smoother). A
-    clearcoat does not count: its lobe is narrow but weak (at most 0.25 x 4% at normal
-    incidence), and the trade-off grid's gloss-0.9 coat measured as accurate at 1/2 as at 1."""
+    """Is this material's specular lobe wide enough for the rough GI scale? The roughness of its
+    narrow axis (the GGX alpha_y that app/pbgi/brdf.py: spec_alphas gives, as the shader does,
+    is that of an isotropic roughness sqrt(alpha_y)) at least ``rough_from``, and no roughness
+    texture (glTF multiplies it into the factor, so it can only be smoother). A clearcoat does
+    not count: its lobe is narrow but weak (at most 0.25 x 4% at normal incidence), and the
+    trade-off grid's gloss-0.9 coat measured as accurate at 1/2 as at 1."""
+    from app.pbgi.brdf import pack_params, spec_alphas
     if material.metallic_roughness_texture is not None:
         return False
-    aspect = math.sqrt(max(1.0 - 0.9 * float(material.anisotropic), 0.0))
-    return float(material.roughness) * math.sqrt(aspect) >= float(rough_from)
+    _, alpha_y = spec_alphas(pack_params(material))
+    return math.sqrt(float(alpha_y)) >= float(rough_from)
 
 
 def gi_scale_of(values, materials) -> float:

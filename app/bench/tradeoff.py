@@ -198,11 +198,12 @@ class Ref:
 
 
 def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory: Path,
-              max_depth: int = MAX_DEPTH) -> Ref:
+              max_depth: int = MAX_DEPTH, mat=None) -> Ref:
     """The path-traced reference of (room, material), from ``directory`` or rendered and stored
     there (EXR + a JSON of its noise floor; written to temporaries, then renamed). ``rl``: a
     Relighter holding the scene (the sphere's pixel mask for the noise floor). ``max_depth``
-    other than MAX_DEPTH (3 for a non-convex asset's inter-reflection) is in the file name."""
+    other than MAX_DEPTH (3 for a non-convex asset's inter-reflection) is in the file name.
+    ``mat``: the material of a ``kind`` outside MATERIALS (a sweep's), named by ``kind``."""
     import json
 
     from app.bench import mitsuba_scene as ms
@@ -221,7 +222,7 @@ def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory
         raise UsageError(None, f"the references need Mitsuba 3 (pip install -e .[reference]): "
                                f"{e}") from None
     log.info("rendering the reference %s (%d spp)", stem, spp)
-    sc = ms.build_scene(cloud, mesh, material(kind), camera, ms.square_side(cloud),
+    sc = ms.build_scene(cloud, mesh, mat or material(kind), camera, ms.square_side(cloud),
                         max_depth=max_depth)
     ref = ms.render_reference(sc, spp)
     from app.bench import image_metrics as im

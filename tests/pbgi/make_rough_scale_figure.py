@@ -1,13 +1,20 @@
-"""The README's before/after figure of the GI scale per scene (``pbgi.rough_render_scale``):
-docs/rough_scale.png.
+"""The README's before/after figures of the GI scale per scene (``pbgi.rough_render_scale``):
+docs/rough_scale.png; with ``--cases`` and ``--settings`` the others of "Speed against accuracy"
+(the scale by roughness, ``pbgi.rough_scale_from``: docs/rough_scale_from.png; the ``final``
+preset, Classic M 24 before and Hybrid M 24 after: docs/final_preset.png).
 
     python tests/pbgi/make_rough_scale_figure.py [--out docs/rough_scale.png]
+    python tests/pbgi/make_rough_scale_figure.py --out docs/rough_scale_from.png \
+        --cases apartment:gold_r0.35,apartment:clearcoat,demo:gold_r0.45
+    python tests/pbgi/make_rough_scale_figure.py --out docs/final_preset.png --settings mode \
+        --cases demo:diffuse,demo:rough_metal,apartment:rough_metal
 
-Per case (the trade-off bench's rooms and rough materials, 256 x 256 close-ups): the path-traced
-reference (app/bench/tradeoff.py's, cached; Mitsuba 3 renders it if it is missing), the
-`balanced` preset before (Hybrid M 24, GI at full resolution) and after (GI at 1/2, the scale
-it now takes for a rough scene), and each one's |image - reference| x 5 over the asset, both 4x4-pooled (the reference's
-own noise averages out), tone mapped alike.
+Per case (the trade-off bench's rooms and materials, or gold of roughness R as ``gold_rR``;
+256 x 256 close-ups): the path-traced reference (app/bench/tradeoff.py's, cached; Mitsuba 3
+renders it if it is missing), the image before and after (``--settings scale``: Hybrid M 24 at
+GI scale 1 and 1/2; ``mode``: Classic M 24 and Hybrid M 24), and each one's |image - reference|
+x 5 over the asset, both 4x4-pooled (the reference's own noise averages out), tone mapped
+alike.
 Prints each image's 4x4-pooled relative RMSE (the bench's evaluate).
 """
 
@@ -26,8 +33,18 @@ from app.io.images import write_png  # noqa: E402
 from app.pbgi.renderer import Relighter  # noqa: E402
 from app.render.tonemap import tonemap_to_srgb8  # noqa: E402
 
-CASES = (("demo", "diffuse"), ("demo", "rough_metal"), ("apartment", "rough_metal"))
-SETTINGS = (T.make_setting("hybrid", 1.0, m=24), T.make_setting("hybrid", 0.5, m=24))
+CASES = "demo:diffuse,demo:rough_metal,apartment:rough_metal"
+SETTINGS = {"scale": (T.make_setting("hybrid", 1.0, m=24), T.make_setting("hybrid", 0.5, m=24)),
+            "mode": (T.make_setting("classic", 1.0, m=24), T.make_setting("hybrid", 1.0, m=24))}
+GOLD = "gold_r"
+
+
+def _material(kind: str):
+    """The trade-off's material, or gold (its glossy colour) at the roughness ``gold_rR`` names."""
+    from dataclasses import replace
+    if kind.startswith(GOLD):
+        return replace(T.material("glossy"), roughness=float(kind[len(GOLD):]))
+    return T.material(kind)
 
 
 def _pool4(rgb: np.ndarray) -> np.ndarray:
@@ -40,21 +57,27 @@ def _pool4(rgb: np.ndarray) -> np.ndarray:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs/rough_scale.png")
+    ap.add_argument("--cases", default=CASES, help="room:material, comma-separated")
+    ap.add_argument("--settings", choices=tuple(SETTINGS), default="scale")
     args = ap.parse_args()
+    settings = SETTINGS[args.settings]
     rows = []
-    for room, kind in CASES:
+    for case in args.cases.split(","):
+        room, kind = case.split(":")
+        mat = _material(kind)
         cloud, mesh, cam = T.scene(room)
         rl = Relighter()
         rl.set_cloud(cloud)
         rl.set_asset(mesh)
-        ref = T.reference(room, kind, rl, cloud, mesh, cam, T.SPP[room], T.reference_dir())
-        images = [T.render_setting(rl, cam, T.material(kind), s)[0] for s in SETTINGS]
+        ref = T.reference(room, kind, rl, cloud, mesh, cam, T.SPP[room], T.reference_dir(),
+                          mat=mat)
+        images = [T.render_setting(rl, cam, mat, s)[0] for s in settings]
         rl.release()
         ev = -float(np.log2(max(np.percentile(ref.image[..., :3], 99), 1e-6)))
         on = images[0][..., 3] > 0.5                      # the asset's pixels
         mean = float(ref.image[..., :3][on].mean())
         tiles = [tonemap_to_srgb8(im[..., :3], ev) for im in [ref.image] + images]
-        for s, im in zip(SETTINGS, images):
+        for s, im in zip(settings, images):
             # over the asset, 4x4-pooled as the error is (the reference's own noise averages out)
             diff = np.abs(_pool4(im[..., :3]) - _pool4(ref.image[..., :3])) * 5.0 * on[..., None]
             tiles.append(tonemap_to_srgb8(diff, -float(np.log2(max(mean, 1e-6)))))

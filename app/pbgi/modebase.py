@@ -224,6 +224,12 @@ class CutFinder(ABC):
     def reserve_bytes(self, budget_bytes: float) -> int:
         """GPU bytes taken whatever the batch size (subtracted from the budget first)."""
 
+    def begin_group(self, frame: Frame, first: int, count: int, m: int) -> None:
+        """Receivers ``first`` .. ``first + count - 1`` of ``frame`` are about to be filled in
+        one or more batches at size ``m``: a finder whose result for a receiver depends on its
+        neighbours (Hybrid's blocks) decides it here for the whole group, so that where the
+        memory budget splits the group does not show in the image. Default: nothing."""
+
     @abstractmethod
     def release(self) -> None:
         """Free the GL objects the finder holds."""
@@ -287,6 +293,8 @@ class MicroBufferMode(RenderMode):
             return None
         # the finder's share of the budget, from the first batch size (kept when halving)
         cut_budget = max(budget - mb_per * per, 0.0)
+        if not reuse:
+            cut.begin_group(frame, start, n, m)
         halvings, first, end = 0, start, start + n
         t_cut = t_gather = 0.0
         while first < end:

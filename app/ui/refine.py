@@ -40,8 +40,12 @@ at least every budget or so, instead of after a run that overshot it several tim
    tiles run again with pass index 1, 2, ... (app/pbgi/gbuffer.py: pass_jitter moves each
    pixel's sample inside the pixel, app/pbgi/lobe.py rotates the glossy lobes' micro-buffers),
    and each texel shows the mean radiance of the passes that saw the asset there: edges and
-   mirror images are anti-aliased and the lobes' noise averages out. The compositor's
-   silhouette comes from its own full-resolution G-buffer, so the mean is kept unpremultiplied.
+   mirror images are anti-aliased and the lobes' noise averages out. Each pass also moves the
+   tile grid (tile_offset): a tile is a render call of its own, and Hybrid's far-field blocks
+   end at its edges, which one pass shows as lines (demo close-up 96 x 96, cells of 16, 4
+   passes: across / inside the first pass's cell edges 1.42 on a fixed grid, 1.02 moved).
+   The compositor's silhouette comes from its own full-resolution G-buffer, so the mean is kept
+   unpremultiplied.
 
 4. *Recolouring* (``recolour``): the render function may also return each texel's gather split
    by BRDF factor (app/pbgi/gather_parts.py: GATHER_PARTS records), which the layer keeps -
@@ -67,6 +71,7 @@ import time
 import numpy as np
 
 from app.camera import Camera
+from app.pbgi.gbuffer import r2_point
 from app.pbgi.gather_parts import PART_WORDS, material_ids, part_records, part_words
 from app.pbgi.upsample import scaled_camera
 from app.render.gpu_layout import GI_PENDING, GI_TEXEL
@@ -140,16 +145,32 @@ def screen_rect(cam: Camera, lo, hi, pad: int = 2) -> tuple[int, int, int, int] 
     return x0, y0, x1 - x0, y1 - y0
 
 
-def strip_tiles(rect, cell: int = CELL) -> list[list[tuple[int, int, int, int]]]:
-    """Cells of ``rect`` grouped by row band, bands ordered from the middle outwards."""
+def strip_tiles(rect, cell: int = CELL,
+                offset=(0, 0)) -> list[list[tuple[int, int, int, int]]]:
+    """Cells of ``rect`` grouped by row band, bands ordered from the middle outwards.
+    ``offset`` (dx, dy): the cell grid moved left and up by that much, modulo the cell (the
+    cells on the rectangle's edges clipped): tile_offset's, per pass."""
     x0, y0, w, h = rect
-    bands = []
-    for y in range(y0, y0 + h, cell):
-        hh = min(cell, y0 + h - y)
-        bands.append([(x, y, min(cell, x0 + w - x), hh) for x in range(x0, x0 + w, cell)])
+
+    def cuts(start: int, size: int, shift: int) -> list[tuple[int, int]]:
+        edges = [start] + [e for e in range(start - shift % cell + cell, start + size, cell)]
+        return [(a, min(b, start + size) - a) for a, b in zip(edges, edges[1:] + [start + size])]
+
+    bands = [[(x, y, cw, hh) for x, cw in cuts(x0, w, offset[0])]
+             for y, hh in cuts(y0, h, offset[1])]
     mid = (len(bands) - 1) / 2
     order = sorted(range(len(bands)), key=lambda i: (abs(i - mid), i))
     return [bands[i] for i in order]
+
+
+def tile_offset(pass_index: int, cell: int) -> tuple[int, int]:
+    """The tile grid's offset for a pass (strip_tiles), (0, 0) for pass 0: the pass's point of
+    the R2 sequence times the cell. Why: each tile is a render call of its own, and Hybrid's
+    far-field blocks (app/pbgi/farfield.py) end at its edges - undithered, with block levels
+    fitted from one side - so a tile's edge shows as a line. Moved from pass to pass, the lines
+    of the passes the layer averages fall in different places."""
+    u, v = r2_point(int(pass_index))
+    return int(u * cell), int(v * cell)
 
 
 class ProgressiveGI:
@@ -318,7 +339,8 @@ class ProgressiveGI:
             self._hits = hit.astype(np.float32)
             self._sum = self.full[y:y + h, x:x + w, :3] * self._hits[..., None]
         self.pass_index += 1
-        self._bands = strip_tiles(self.rect, self.cell_size(budget_ms))
+        cell = self.cell_size(budget_ms)
+        self._bands = strip_tiles(self.rect, cell, tile_offset(self.pass_index, cell))
         self._cells_total = sum(len(b) for b in self._bands)
         self._cells_done = 0
 
@@ -410,7 +432,7 @@ class ProgressiveGI:
         band = self._bands[0]
         cells = 1
         if self.ms_per_px:
-            cell_px = band[0][2] * band[0][3]
+            cell_px = max(c[2] for c in band) * band[0][3]   # an edge cell may be narrower
             cells = max(1, int(budget_ms / (self.ms_per_px * cell_px)))
         run = band[:cells]
         x0, y0 = run[0][0], run[0][1]

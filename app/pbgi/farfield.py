@@ -107,10 +107,15 @@ the blocks and 1.0% (1.4%) across the other block edges; now 1.3% (1.6%), like a
 So the blocks are chosen once for the whole group of receivers, and each batch walks the blocks
 its receivers take - and, for their levels, the blocks within the fit's reach of those
 (block_levels.REACH x their side) whose irradiance no earlier batch gave; a block's level is
-then fitted over the neighbours a single batch would give it. The image no longer depends on the
-batches (to float rounding: tests/pbgi/test_pbgi_farfield.py); the margin's walks cost 3-4% of
-a 256 x 256 frame (4 batches) and under 1% at 512 x 512 (13 batches). A render call is still a
-group of its own: the viewer's tiles are (app/ui/refine.py moves their grid from pass to pass).
+then fitted over the neighbours a single batch would give it. A block a later batch takes too
+(a margin block, or one whose receivers the split divides) keeps its walked micro-buffer row
+for it (``_Group.carry``, a few hundred rows of entries(M) texels on the CPU), so no block is
+walked twice. The image no longer depends on the batches (to float rounding:
+tests/pbgi/test_pbgi_farfield.py), and the frame walks as many blocks as before (256 x 256:
+1156 against 1159, 512 x 512: 3460 against 3471 - before, a block the split divided was two);
+without the carry, walking the margin again cost 10-15% of a 256 x 256 frame. A render call is
+still a group of its own: the viewer's tiles are (app/ui/refine.py moves their grid from pass
+to pass).
 
 Memory: the block micro-buffers (one row of entries(M) texels per block) are most of the extra
 memory; blocks are walked in chunks of at most MAX_CHUNK (fewer when the budget is small), so it
@@ -120,7 +125,7 @@ stays bounded whatever the number of blocks.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -128,8 +133,8 @@ from app.material import Material
 from app.pbgi.block_levels import REACH, block_levels, neighbour_pairs, screen_centres
 from app.pbgi.classic import ClassicCut
 from app.pbgi.gbuffer import material_table, r2_point
-from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, GATHER_OUTPUT, IMAGE, RECEIVER,
-                                 SHARE_NONE, SHARE_ROW, SSBO, dispatch_groups)
+from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, GATHER_OUTPUT, IMAGE, MB_ENTRY,
+                                 RECEIVER, SHARE_NONE, SHARE_ROW, SSBO, dispatch_groups)
 from app.pbgi.microbuffer import ENTRY_BYTES, MicroBuffers, entries
 from app.pbgi.modebase import Batch, CutFigures, CutFinder
 from app.pbgi.stats import ShareFigures
@@ -333,20 +338,24 @@ class _Group:
     ratio: np.ndarray | None = None   # (B, 3) the walked blocks' E_b / E_env (remember)
     ok: np.ndarray | None = None      # (B,) their far walk completed and both irradiances > 0
     known: np.ndarray | None = None   # (B,) walked by an earlier batch of the group
+    # walked by an earlier batch and taken by a later one: group block -> (its micro-buffer row
+    # (E, 2) MB_ENTRY words, its far walk completed), so that no block is walked twice
+    carry: dict = field(default_factory=dict)
 
     def batch_blocks(self, first: int, count: int,
-                     levelled: bool) -> tuple[dict, np.ndarray, np.ndarray]:
-        """What the batch of receivers ``first`` .. ``first + count - 1`` walks and fits.
+                     levelled: bool) -> tuple[dict, np.ndarray, np.ndarray, int]:
+        """What the batch of receivers ``first`` .. ``first + count - 1`` merges, walks and fits.
 
-        Returns (blocks, walk, fit). ``walk``: the group indices of the blocks the batch walks,
-        ``blocks``: those blocks as choose_blocks returns them for the batch, renumbered from 0
-        in the group's order (block_of per batch receiver; first / last: the batch receivers of
-        each block, count / -1 for a block none of them takes). ``fit``: the blocks whose
-        irradiance the levels are fitted over. The batch walks the blocks its receivers take;
-        with ``levelled`` also every block within reach of those whose irradiance no earlier
-        batch of the group gave (``remember``): block_levels.block_levels fits each block over
-        its neighbours within REACH x its side, so with all of them in ``fit`` a block's level
-        is the one a single batch would give it, whichever batch walks it."""
+        Returns (blocks, ids, fit, carried). ``ids``: the group indices of the batch's blocks,
+        the first ``carried`` of them kept from an earlier batch's walk (``carry``), the rest
+        walked now; ``blocks``: those blocks as choose_blocks returns them for the batch,
+        numbered by their place in ``ids`` (block_of per batch receiver; first / last: the
+        batch receivers of each block, count / -1 for a block none of them takes). ``fit``: the
+        blocks whose irradiance the levels are fitted over. The batch needs the blocks its
+        receivers take; with ``levelled`` also every block within reach of those whose
+        irradiance no earlier batch gave (``remember``): block_levels.block_levels fits each
+        block over its neighbours within REACH x its side, so with all of them in ``fit`` a
+        block's level is the one a single batch would give it, whichever batch walks it."""
         g = self.blocks
         nb_group = len(g["ball"])
         mine = g["block_of"][first - self.first:first - self.first + count]
@@ -360,18 +369,26 @@ class _Group:
                 fit = np.union1d(walk, b[np.isin(a, walk)])
                 known = self.ratio is not None
                 walk = np.union1d(walk, fit[~self.known[fit]]) if known else fit
+        kept = np.array(sorted(self.carry), np.int64)
+        kept = kept[np.isin(kept, walk)]
+        ids = np.concatenate([kept, walk[~np.isin(walk, kept)]])
         local = np.full(max(nb_group, 1), NONE, np.uint32)
-        local[walk] = np.arange(len(walk), dtype=np.uint32)
+        local[ids] = np.arange(len(ids), dtype=np.uint32)
         block_of = np.full(count, NONE, np.uint32)
         block_of[has] = local[mine[has]]
-        out = {k: g[k][walk] for k in ("centre", "axis", "ball", "rho", "level", "size")}
+        out = {k: g[k][ids] for k in ("centre", "axis", "ball", "rho", "level", "size")}
         rows = np.flatnonzero(has)
-        out["first"] = np.full(len(walk), count, np.int64)
+        out["first"] = np.full(len(ids), count, np.int64)
         np.minimum.at(out["first"], block_of[rows].astype(np.int64), rows)
-        out["last"] = np.full(len(walk), -1, np.int64)
+        out["last"] = np.full(len(ids), -1, np.int64)
         np.maximum.at(out["last"], block_of[rows].astype(np.int64), rows)
         out["block_of"] = block_of
-        return out, walk, fit
+        return out, ids, fit, len(kept)
+
+    def later(self, ids: np.ndarray, first: int, count: int) -> np.ndarray:
+        """Which of the blocks ``ids`` a receiver after batch ``first``, ``count`` takes too:
+        a walk of theirs is worth keeping for that batch (``carry``)."""
+        return self.blocks["last"][ids] >= first - self.first + count
 
     def remember(self, walk: np.ndarray, ratio: np.ndarray, ok: np.ndarray) -> None:
         """The walked blocks' ratio E_b / E_env(n_b) and whether their level may move."""
@@ -438,13 +455,16 @@ class FarFieldShare(CutFinder):
         self._bufs.append(b)
         return b
 
-    def _merge(self, mb, block_buf, r0: int, r1: int, b0: int, b1: int, clear: bool = False):
-        """Receivers [r0, r1) of the batch: copy blocks [b0, b1)'s buffers into theirs (the
-        shader skips receivers of other blocks), or (``clear``) empty the rows of those without
-        a block."""
+    def _merge(self, mb, block_buf, r0: int, r1: int, b0: int, b1: int, clear: bool = False,
+               source=None):
+        """Receivers [r0, r1) of the batch: copy blocks [b0, b1)'s buffers (rows 0 .. of
+        ``source``, default the block micro-buffers) into theirs (the shader skips receivers of
+        other blocks), or (``clear``) empty the rows of those without a block."""
         block_buf.bind_to_storage_buffer(SSBO.BLOCK_OF)
         mb.bind()
-        if self.block_mb.image is not None:
+        if source is not None:
+            source.bind_to_image(IMAGE.SHARE_SOURCE, read=True, write=False)
+        elif self.block_mb.image is not None:
             self.block_mb.image.bind_to_image(IMAGE.SHARE_SOURCE, read=True, write=False)
         else:       # no block at all: the shader still needs an image on that unit
             mb.image.bind_to_image(IMAGE.SHARE_SOURCE, read=True, write=False)
@@ -487,15 +507,16 @@ class FarFieldShare(CutFinder):
         t_choose, g.ms = g.ms, 0.0            # counted once, in the group's first batch
         levelled = (len(g.blocks["ball"]) >= LEVEL_MIN_BLOCKS and self.level_fit
                     and batch.environment is not None and batch.gather is not None)
-        blocks, walk, fit = g.batch_blocks(first, count, levelled)
-        nb = len(walk)
+        blocks, ids, fit, nc = g.batch_blocks(first, count, levelled)
+        nb = len(ids)                 # blocks 0 .. nc - 1 kept from earlier batches, the rest walked
         block_of = blocks["block_of"]
         t1 = time.perf_counter()
         row_bytes = entries(m) * ENTRY_BYTES
-        cap = int(max(1, min(nb, self.share_fraction * budget_bytes // row_bytes, MAX_CHUNK,
+        cap = int(max(1, min(nb - nc, self.share_fraction * budget_bytes // row_bytes, MAX_CHUNK,
                              int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)))))
         far_visited = np.zeros(max(nb, 1), np.int64)
         far_done = np.ones(max(nb, 1), bool)
+        far_done[:nc] = [g.carry[b][1] for b in ids[:nc]]
         rounds = chunks = 0
         peak_bytes = 0
         t_lv = 0.0                    # the block levels' share of the chunk loop
@@ -503,7 +524,14 @@ class FarFieldShare(CutFinder):
         try:
             block_buf = self._buffer(block_of)
             self._merge(mb, block_buf, 0, count, NONE, NONE, clear=True)
-            if nb:
+            if nc:                    # the blocks an earlier batch walked for this one
+                kept = np.stack([g.carry[b][0] for b in ids[:nc]])
+                tex = ctx.texture((entries(m), nc), MB_ENTRY.texel_components, kept.tobytes(),
+                                  dtype=MB_ENTRY.texture_dtype)
+                self._bufs.append(tex)
+                self._merge(mb, block_buf, int(blocks["first"][:nc].min()),
+                            int(blocks["last"][:nc].max()) + 1, 0, nc, source=tex)
+            if nb > nc:
                 pseudo = RECEIVER.zeros(nb)     # a block walks as one receiver at its centre
                 pseudo["position"] = blocks["centre"]
                 pseudo["normal"] = blocks["axis"]
@@ -517,7 +545,7 @@ class FarFieldShare(CutFinder):
                 balls["center"] = blocks["centre"]
                 balls["ball"] = blocks["ball"]
                 balls["frame"] = blocks["axis"]
-                for b0 in range(0, nb, cap):
+                for b0 in range(nc, nb, cap):
                     b1 = min(nb, b0 + cap)
                     chunks += 1
                     self.block_mb.prepare(m, cap, b1 - b0)
@@ -527,6 +555,11 @@ class FarFieldShare(CutFinder):
                     far_visited[b0:b1] = res.visited
                     far_done[b0:b1] = res.done
                     rounds += res.rounds
+                    later = g.later(ids[b0:b1], first, count)
+                    if later.any():         # a later batch takes them: keep, not walk again
+                        rows = self.block_mb.read(b1 - b0)
+                        for j in np.flatnonzero(later):
+                            g.carry[int(ids[b0 + j])] = (rows[j].copy(), bool(res.done[j]))
                     # copy the chunk's block buffers into its receivers' micro-buffers (a chunk
                     # of margin blocks only, walked for their neighbours' levels, has none)
                     r0 = int(blocks["first"][b0:b1].min())
@@ -542,19 +575,20 @@ class FarFieldShare(CutFinder):
                         t_lv += time.perf_counter() - tl
             t2 = time.perf_counter()
             levels = np.ones((nb, 3))
-            if levelled:            # ... over the room's, seen from the asset's centre
+            if levelled and nb > nc:    # ... over the room's, seen from the asset's centre
                 env = batch.environment(LEVEL_ENV_FACE)
                 env_bytes = env.nbytes
-                batch.gather.run(pseudo_buf, white, env_e, 0, nb, m, np.zeros(3), env=env,
+                batch.gather.run(pseudo_buf, white, env_e, nc, nb - nc, m, np.zeros(3), env=env,
                                  irradiance=True)
                 e = GATHER_OUTPUT.view(far_e.read())
                 e_env = GATHER_OUTPUT.view(env_e.read())
                 ratio = e["radiance"].astype(np.float64) / np.maximum(e_env["radiance"], 1e-30)
                 ok = far_done[:nb] & (e["status"] > 0) & (e_env["status"] > 0)
                 ok &= (e_env["radiance"] > 0).all(1)
-                g.remember(walk, ratio, ok)
-                levels = g.levels(walk, fit, LEVEL_FLAT * micro_pixel_angle(m))
-                self.last_irradiance = e["radiance"].copy()
+                g.remember(ids[nc:], ratio[nc:], ok[nc:])
+                self.last_irradiance = e["radiance"][nc:].copy()
+            if levelled and nb:
+                levels = g.levels(ids, fit, LEVEL_FLAT * micro_pixel_angle(m))
             self.last_blocks, self.last_levels = blocks, levels
             t_levels = time.perf_counter()
             near_balls = SHARE_ROW.zeros(count)
@@ -574,6 +608,8 @@ class FarFieldShare(CutFinder):
             frames["level"][has] = levels[block_of[has]]
             self.frames = ctx.buffer(frames.tobytes())
             t3 = time.perf_counter()
+            for b in ids[:nc][~g.later(ids[:nc], first, count)]:
+                del g.carry[int(b)]           # no later batch takes it
             if first + count == g.first + g.count:
                 self._group = None            # the group's last batch is done
         finally:
@@ -590,7 +626,7 @@ class FarFieldShare(CutFinder):
             nbytes=peak_bytes + RECEIVER_BYTES * count + BLOCK_BYTES * nb + env_bytes,
             frames=self.frames,
             share=ShareFigures(
-                share_blocks=nb, share_chunks=chunks, share_receivers=int(has.sum()),
+                share_blocks=nb - nc, share_chunks=chunks, share_receivers=int(has.sum()),
                 share_block_visits=int(far_visited[:nb].sum()),
                 ms_share_blocks=(t1 - t0 + t_choose) * 1e3, ms_share_far=(t2 - t1 - t_lv) * 1e3,
                 ms_share_levels=(t_lv + t_levels - t2) * 1e3, ms_share_near=(t3 - t_levels) * 1e3,

@@ -145,7 +145,7 @@ def test_batches_the_budget_splits_a_frame_into_give_the_one_batch_image(demo_re
     """A memory budget that splits the frame into several batches of receivers leaves the image
     as one batch renders it: the blocks are chosen over the whole frame (a receiver near a batch
     edge still joins its neighbouring block) and each batch's levels are fitted over the same
-    neighbours (the margin beyond the batch's own blocks). Before, a batch's edge was a straight
+    neighbours (the margin beyond the batch's own blocks), with no block walked twice. Before, a batch's edge was a straight
     undithered block edge with one-sided fits: a seam where the Z-order split the frame, up to
     21% of the mean radiance here."""
     from app.demo.room import default_views
@@ -158,6 +158,8 @@ def test_batches_the_budget_splits_a_frame_into_give_the_one_batch_image(demo_re
     split = r.render(cam, [mat], replace(p, memory_budget_mb=4.0))
     assert one.stats.batches == 1 and split.stats.batches >= 3
     assert split.stats.share.share_levelled > 0                 # the levels are in play
+    # every block walked once: a walk one batch does for a later one is kept for it
+    assert split.stats.share.share_blocks == one.stats.share.share_blocks
     on = one.image[..., 3] > 0.5
     mean = one.image[..., :3][on].mean()
     assert np.abs(split.image - one.image).max() <= 1e-5 * mean

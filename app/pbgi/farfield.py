@@ -508,7 +508,7 @@ class FarFieldShare(CutFinder):
         levelled = (len(g.blocks["ball"]) >= LEVEL_MIN_BLOCKS and self.level_fit
                     and batch.environment is not None and batch.gather is not None)
         blocks, ids, fit, nc = g.batch_blocks(first, count, levelled)
-        nb = len(ids)                 # blocks 0 .. nc - 1 kept from earlier batches, the rest walked
+        nb = len(ids)                 # blocks 0 .. nc - 1 kept from earlier batches (carry)
         block_of = blocks["block_of"]
         t1 = time.perf_counter()
         row_bytes = entries(m) * ENTRY_BYTES
@@ -623,7 +623,8 @@ class FarFieldShare(CutFinder):
         return CutFigures(
             visited=res.visited, done=done, tests=res.tests, rounds=rounds + res.rounds,
             cut_short=res.cut_short,
-            nbytes=peak_bytes + RECEIVER_BYTES * count + BLOCK_BYTES * nb + env_bytes,
+            nbytes=(peak_bytes + RECEIVER_BYTES * count + BLOCK_BYTES * nb + env_bytes
+                    + nc * row_bytes),          # the kept blocks' rows, uploaded for the merge
             frames=self.frames,
             share=ShareFigures(
                 share_blocks=nb - nc, share_chunks=chunks, share_receivers=int(has.sum()),

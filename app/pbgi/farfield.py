@@ -335,12 +335,16 @@ class _Group:
     normal: np.ndarray                # (count, 3) the receivers' normals
     ms: float                         # seconds choosing them (reported by the first batch)
     _pairs: tuple | None = None
-    ratio: np.ndarray | None = None   # (B, 3) the walked blocks' E_b / E_env (remember)
-    ok: np.ndarray | None = None      # (B,) their far walk completed and both irradiances > 0
-    known: np.ndarray | None = None   # (B,) walked by an earlier batch of the group
+    ratio: np.ndarray = field(init=False)   # (B, 3) the walked blocks' E_b / E_env (remember)
+    ok: np.ndarray = field(init=False)      # (B,) their far walk completed, irradiances > 0
+    known: np.ndarray = field(init=False)   # (B,) walked by an earlier batch of the group
     # walked by an earlier batch and taken by a later one: group block -> (its micro-buffer row
     # (E, 2) MB_ENTRY words, its far walk completed), so that no block is walked twice
     carry: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        nb = len(self.blocks["ball"])
+        self.ratio, self.ok, self.known = np.ones((nb, 3)), np.zeros(nb, bool), np.zeros(nb, bool)
 
     def batch_blocks(self, first: int, count: int,
                      levelled: bool) -> tuple[dict, np.ndarray, np.ndarray, int]:
@@ -367,8 +371,7 @@ class _Group:
             if levelled and len(walk):
                 a, b = self.pairs()
                 fit = np.union1d(walk, b[np.isin(a, walk)])
-                known = self.ratio is not None
-                walk = np.union1d(walk, fit[~self.known[fit]]) if known else fit
+                walk = np.union1d(walk, fit[~self.known[fit]])
         kept = np.array(sorted(self.carry), np.int64)
         kept = kept[np.isin(kept, walk)]
         ids = np.concatenate([kept, walk[~np.isin(walk, kept)]])
@@ -392,10 +395,6 @@ class _Group:
 
     def remember(self, walk: np.ndarray, ratio: np.ndarray, ok: np.ndarray) -> None:
         """The walked blocks' ratio E_b / E_env(n_b) and whether their level may move."""
-        if self.ratio is None:
-            nb = len(self.blocks["ball"])
-            self.ratio, self.ok = np.ones((nb, 3)), np.zeros(nb, bool)
-            self.known = np.zeros(nb, bool)
         self.ratio[walk], self.ok[walk], self.known[walk] = ratio, ok, True
 
     def levels(self, walk: np.ndarray, fit: np.ndarray, flat: float) -> np.ndarray:

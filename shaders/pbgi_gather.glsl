@@ -143,7 +143,8 @@ void main() {
     bvec2 terms = lobe_terms(Q, u_glossy_below);
     bool lobed = any(terms) && Q.n_dot_v > 0.0;
     uvec2 size = lobe_size(Q, terms, u_glossy_below, u_rings, u_sectors);
-    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, size.x, size.y);
+    LobeFrame F = lobe_frame_for(Q, terms, lobe_seed_pixel(receiver_pixel(rid)), u_pass, size.x,
+                                  size.y);
     float spec_share = lobe_spec_share(Q, u_glossy_below);
 #endif
     uint k;

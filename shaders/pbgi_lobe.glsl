@@ -82,7 +82,8 @@ void main() {
         return;
     }
     uvec2 size = lobe_size(Q, terms, u_glossy_below, u_rings, u_sectors);
-    LobeFrame F = lobe_frame_for(Q, terms, receiver_pixel(rid), u_pass, size.x, size.y);
+    LobeFrame F = lobe_frame_for(Q, terms, lobe_seed_pixel(receiver_pixel(rid)), u_pass, size.x,
+                                  size.y);
     LobeCone K = lobe_cone(F);
     uint cells_used = size.x * size.y;
     for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {

@@ -113,9 +113,20 @@ for it (``_Group.carry``, a few hundred rows of entries(M) texels on the CPU), s
 walked twice. The image no longer depends on the batches (to float rounding:
 tests/pbgi/test_pbgi_farfield.py), and the frame walks as many blocks as before (256 x 256:
 1156 against 1159, 512 x 512: 3460 against 3471 - before, a block the split divided was two);
-without the carry, walking the margin again cost 10-15% of a 256 x 256 frame. A render call is
-still a group of its own: the viewer's tiles are (app/ui/refine.py moves their grid from pass
-to pass).
+without the carry, walking the margin again cost 10-15% of a 256 x 256 frame.
+
+Layers (``Frame.layer``). The viewer refines its layer in tiles (app/ui/refine.py), each a
+render call of its own, so a tile was a group of its own: its blocks ended at its edges, and one
+pass showed the tile grid as lines (demo close-up 96 x 96, M 16, cells of 16: across / inside
+the cell edges 1.74, against 1.15 in one render of the layer; 256 x 256, M 24, cells of 32:
+1.83 against 1.34). A tile that names its layer is a batch of the layer's group instead: the
+Relighter rasterises the layer's G-buffer once per pass and hands each tile its rows of it, and
+the blocks are chosen over the whole layer at its first tile and kept (``_Group.key``: the
+layer's key, which holds everything the cut depends on) until every receiver of the layer has
+been filled (``pending``, ``left``); a later tile whose receivers were filled already (the same
+view begun again) begins the group anew. The tiles then add up to one render of the layer, to
+float rounding (tests/ui/test_ui_refine.py), at the cost of the tiles (the orbit at 900 x 520
+took as long as before).
 
 Memory: the block micro-buffers (one row of entries(M) texels per block) are most of the extra
 memory; blocks are walked in chunks of at most MAX_CHUNK (fewer when the budget is small), so it
@@ -161,9 +172,9 @@ FAR_WORKGROUP = 8
 # Block levels (app/pbgi/block_levels.py): the cube-map face of the room the blocks' far-field
 # irradiance is divided by (pbgi.envmap_face's default, so the Relighter's one cached cube map
 # serves the baseline too), and the normal spread, in micro-pixels, below which a block's
-# neighbourhood is flat and keeps level 1. A batch of fewer blocks than LEVEL_MIN_BLOCKS (a
-# viewer tile of 16 x 16 pixels holds 4 to 16) leaves them all at 1: its blocks have too few
-# neighbours for a fit, and the gathers and the fit cost a small tile 10-20%.
+# neighbourhood is flat and keeps level 1. A group of fewer blocks than LEVEL_MIN_BLOCKS (a
+# frame of 16 x 16 pixels holds 4 to 16) leaves them all at 1: its blocks have too few
+# neighbours for a fit, and the gathers and the fit cost a small frame 10-20%.
 LEVEL_ENV_FACE = 128
 LEVEL_FLAT = 0.35
 LEVEL_MIN_BLOCKS = 12
@@ -325,11 +336,12 @@ def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[in
 @dataclass
 class _Group:
     """The blocks of one group of receivers (FarFieldShare.begin_group), chosen over all of it;
-    each batch walks the part it needs (batch_blocks)."""
-    first: int                        # the group's receivers first .. first + count - 1
-    count: int
+    each batch walks the part it needs (batch_blocks). The group's receivers are its rows
+    0 .. count - 1: a frame's receivers, or a whole layer's, whose tiles are render calls of
+    their own (``key``: what the blocks were chosen for; see "Layers" in the module docstring)."""
+    key: tuple | None                 # the layer's key and M, or None: the blocks of one frame
     m: int
-    blocks: dict                      # choose_blocks over the group (receiver indices from 0)
+    blocks: dict                      # choose_blocks over the group (receiver rows from 0)
     xy: np.ndarray                    # (B, 2) screen centres of the blocks
     count_of: np.ndarray              # (B,) their receivers
     normal: np.ndarray                # (count, 3) the receivers' normals
@@ -338,6 +350,8 @@ class _Group:
     ratio: np.ndarray = field(init=False)   # (B, 3) the walked blocks' E_b / E_env (remember)
     ok: np.ndarray = field(init=False)      # (B,) their far walk completed, irradiances > 0
     known: np.ndarray = field(init=False)   # (B,) walked by an earlier batch of the group
+    pending: np.ndarray = field(init=False)  # (count,) receivers no batch has filled yet
+    left: np.ndarray = field(init=False)    # (B,) per block, its receivers still pending
     # walked by an earlier batch and taken by a later one: group block -> (its micro-buffer row
     # (E, 2) MB_ENTRY words, its far walk completed), so that no block is walked twice
     carry: dict = field(default_factory=dict)
@@ -345,10 +359,23 @@ class _Group:
     def __post_init__(self):
         nb = len(self.blocks["ball"])
         self.ratio, self.ok, self.known = np.ones((nb, 3)), np.zeros(nb, bool), np.zeros(nb, bool)
+        self.pending = np.ones(len(self.normal), bool)
+        self.left = self.taken(np.arange(len(self.normal)))
 
-    def batch_blocks(self, first: int, count: int,
+    @property
+    def count(self) -> int:
+        return len(self.normal)
+
+    def taken(self, rows: np.ndarray) -> np.ndarray:
+        """(B,) how many of receivers ``rows`` each block takes."""
+        mine = self.blocks["block_of"][rows]
+        return np.bincount(mine[mine != NONE].astype(np.int64),
+                           minlength=len(self.blocks["ball"]))
+
+    def batch_blocks(self, rows: np.ndarray,
                      levelled: bool) -> tuple[dict, np.ndarray, np.ndarray, int]:
-        """What the batch of receivers ``first`` .. ``first + count - 1`` merges, walks and fits.
+        """What the batch of receivers ``rows`` (group rows, none filled yet) merges, walks and
+        fits.
 
         Returns (blocks, ids, fit, carried). ``ids``: the group indices of the batch's blocks,
         the first ``carried`` of them kept from an earlier batch's walk (``carry``), the rest
@@ -362,7 +389,8 @@ class _Group:
         block's level is the one a single batch would give it, whichever batch walks it."""
         g = self.blocks
         nb_group = len(g["ball"])
-        mine = g["block_of"][first - self.first:first - self.first + count]
+        count = len(rows)
+        mine = g["block_of"][rows]
         has = mine != NONE
         if count == self.count:
             walk = fit = np.arange(nb_group)
@@ -380,18 +408,24 @@ class _Group:
         block_of = np.full(count, NONE, np.uint32)
         block_of[has] = local[mine[has]]
         out = {k: g[k][ids] for k in ("centre", "axis", "ball", "rho", "level", "size")}
-        rows = np.flatnonzero(has)
+        at = np.flatnonzero(has)
         out["first"] = np.full(len(ids), count, np.int64)
-        np.minimum.at(out["first"], block_of[rows].astype(np.int64), rows)
+        np.minimum.at(out["first"], block_of[at].astype(np.int64), at)
         out["last"] = np.full(len(ids), -1, np.int64)
-        np.maximum.at(out["last"], block_of[rows].astype(np.int64), rows)
+        np.maximum.at(out["last"], block_of[at].astype(np.int64), at)
         out["block_of"] = block_of
         return out, ids, fit, len(kept)
 
-    def later(self, ids: np.ndarray, first: int, count: int) -> np.ndarray:
-        """Which of the blocks ``ids`` a receiver after batch ``first``, ``count`` takes too:
-        a walk of theirs is worth keeping for that batch (``carry``)."""
-        return self.blocks["last"][ids] >= first - self.first + count
+    def later(self, ids: np.ndarray, mine: np.ndarray) -> np.ndarray:
+        """Which of the blocks ``ids`` a receiver outside the batch that takes ``mine`` of
+        each (and not filled yet) takes too: a walk of theirs is worth keeping (``carry``)."""
+        return self.left[ids] > mine
+
+    def filled(self, rows: np.ndarray) -> None:
+        """Receivers ``rows`` are filled: their blocks wait for that many fewer."""
+        rows = rows[self.pending[rows]]
+        self.left -= self.taken(rows)
+        self.pending[rows] = False
 
     def remember(self, walk: np.ndarray, ratio: np.ndarray, ok: np.ndarray) -> None:
         """The walked blocks' ratio E_b / E_env(n_b) and whether their level may move."""
@@ -440,6 +474,7 @@ class FarFieldShare(CutFinder):
         self._bufs = []
         self.frames = None            # per batch receiver: its micro-buffer's frame normal
         self._group = None            # the blocks of the group being filled (begin_group)
+        self._span = None             # (first, rows): the frame's receivers first .. in it
 
     def bytes_per_receiver(self, m: int) -> int:
         """What a receiver costs besides its micro-buffer, plus a quarter of a block's (blocks
@@ -476,21 +511,41 @@ class FarFieldShare(CutFinder):
 
     def begin_group(self, frame, first: int, count: int, m: int) -> None:
         """(CutFinder) The group's blocks, chosen once over all its receivers (see "Batches"
-        in the module docstring)."""
-        self._choose(frame.receivers, first, count, m, frame.tile[2], frame.pass_index)
+        in the module docstring) - or over the whole layer of a tile (``frame.layer``), kept
+        for the layer's next tiles (see "Layers")."""
+        layer = frame.layer
+        if layer is None:
+            self._choose(frame.receivers, first, count, m, frame.tile[2], frame.pass_index)
+            return
+        rows = layer.rows[first:first + count]
+        tag, members = layer.group_of(rows)
+        key = (layer.key, m, tag)
+        g = self._group
+        grow = np.searchsorted(members, rows)
+        if g is None or g.key != key or not g.pending[grow].all():   # new, or done again
+            t0 = time.perf_counter()
+            rec = layer.receivers[members]
+            self._group = g = self._new_group(key, rec, m, layer.width, frame.pass_index,
+                                              t0)
+        self._span = (first, grow)
 
     def _choose(self, receivers, first: int, count: int, m: int, width: int,
                 pass_index: int) -> None:
+        """Blocks over the frame's receivers ``first`` .. ``first + count - 1`` alone."""
         t0 = time.perf_counter()
         rec = RECEIVER.view(receivers.read(size=RECEIVER.nbytes * count,
                                            offset=RECEIVER.nbytes * first))
+        self._group = self._new_group(None, rec, m, width, pass_index, t0)
+        self._span = (first, np.arange(count))
+
+    def _new_group(self, key, rec: np.ndarray, m: int, width: int, pass_index: int,
+                   t0: float) -> _Group:
         self.offset = grid_offset(pass_index, self.max_level)
         blocks = choose_blocks(rec["pixel"], rec["position"], rec["normal"], width, m,
                                self.tolerance, self.max_level, self.max_cone, offset=self.offset,
                                dither=self.dither)
         xy, cnt = screen_centres(rec["pixel"], blocks["block_of"], len(blocks["ball"]), width)
-        self._group = _Group(first, count, m, blocks, xy, cnt, rec["normal"].copy(),
-                             time.perf_counter() - t0)
+        return _Group(key, m, blocks, xy, cnt, rec["normal"].copy(), time.perf_counter() - t0)
 
     def fill(self, batch: Batch) -> CutFigures:
         ctx = self.ctx
@@ -499,16 +554,21 @@ class FarFieldShare(CutFinder):
         nodes, cell_size, width, budget_bytes = (batch.nodes, batch.cell_size, batch.width,
                                                  batch.budget_bytes)
         t0 = time.perf_counter()
-        g = self._group
-        if g is None or g.m != m or not g.first <= first <= first + count <= g.first + g.count:
-            self._choose(receivers, first, count, m, width, batch.pass_index)   # its own group
-            g = self._group
+        g, grp = self._group, None
+        if g is not None and g.m == m and self._span is not None:
+            f0, grow = self._span
+            if f0 <= first and first + count <= f0 + len(grow):
+                grp = grow[first - f0:first - f0 + count]
+        if grp is None:                       # not in the group begun: a group of its own
+            self._choose(receivers, first, count, m, width, batch.pass_index)
+            g, grp = self._group, self._span[1]
         t_choose, g.ms = g.ms, 0.0            # counted once, in the group's first batch
         levelled = (len(g.blocks["ball"]) >= LEVEL_MIN_BLOCKS and self.level_fit
                     and batch.environment is not None and batch.gather is not None)
-        blocks, ids, fit, nc = g.batch_blocks(first, count, levelled)
+        blocks, ids, fit, nc = g.batch_blocks(grp, levelled)
         nb = len(ids)                 # blocks 0 .. nc - 1 kept from earlier batches (carry)
         block_of = blocks["block_of"]
+        mine = np.bincount(block_of[block_of != NONE].astype(np.int64), minlength=nb)
         t1 = time.perf_counter()
         row_bytes = entries(m) * ENTRY_BYTES
         cap = int(max(1, min(nb - nc, self.share_fraction * budget_bytes // row_bytes, MAX_CHUNK,
@@ -554,7 +614,7 @@ class FarFieldShare(CutFinder):
                     far_visited[b0:b1] = res.visited
                     far_done[b0:b1] = res.done
                     rounds += res.rounds
-                    later = g.later(ids[b0:b1], first, count)
+                    later = g.later(ids[b0:b1], mine[b0:b1])
                     if later.any():         # a later batch takes them: keep, not walk again
                         rows = self.block_mb.read(b1 - b0)
                         for j in np.flatnonzero(later):
@@ -592,7 +652,7 @@ class FarFieldShare(CutFinder):
             t_levels = time.perf_counter()
             near_balls = SHARE_ROW.zeros(count)
             near_balls["ball"] = INF
-            near_balls["frame"] = g.normal[first - g.first:first - g.first + count]
+            near_balls["frame"] = g.normal[grp]
             has = block_of != NONE
             near_balls["center"][has] = blocks["centre"][block_of[has]]
             near_balls["ball"][has] = blocks["ball"][block_of[has]]
@@ -607,10 +667,11 @@ class FarFieldShare(CutFinder):
             frames["level"][has] = levels[block_of[has]]
             self.frames = ctx.buffer(frames.tobytes())
             t3 = time.perf_counter()
-            for b in ids[:nc][~g.later(ids[:nc], first, count)]:
+            for b in ids[:nc][~g.later(ids[:nc], mine[:nc])]:
                 del g.carry[int(b)]           # no later batch takes it
-            if first + count == g.first + g.count:
-                self._group = None            # the group's last batch is done
+            g.filled(grp)
+            if not g.pending.any():
+                self._group = self._span = None   # the group's last batch is done
         finally:
             for b in self._bufs:
                 b.release()

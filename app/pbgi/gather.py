@@ -85,6 +85,7 @@ class Gather:
                 lobe_buffers.bind()
             for name, value in (("u_rings", lobe.rings), ("u_sectors", lobe.sectors),
                                 ("u_pass", lobe.pass_index),
+                                ("u_lobe_tile", tuple(int(v) for v in lobe.seed_tile)),
                                 ("u_glossy_below", lobe.glossy_below)):
                 prog[name] = value
         if frames is not None:

@@ -56,6 +56,11 @@ class LobeSettings:
     glossy_below: float
     pass_index: int = 0
     stop_factor: float = 0.25
+    # (x0, y0, tile width, image width): a receiver's frame is seeded by its pixel in the whole
+    # image (shaders/lib/lobe.glsl: lobe_seed_pixel), so that a tile's receivers get the seeds
+    # the same pixels get in one render of the image - a tile's own pixel index would repeat the
+    # same seeds in every tile of the viewer's refinement, a pattern with the tiles' period
+    seed_tile: tuple = (0, 0, 1, 1)
 
     @property
     def cells(self) -> int:
@@ -221,6 +226,7 @@ class LobeBuffers:
         self.bind()
         prog = self.program(settings.cells, absent)
         values = {"u_first": first, "u_count": count, "u_rings": settings.rings,
+                  "u_lobe_tile": tuple(int(v) for v in settings.seed_tile),
                   "u_sectors": settings.sectors, "u_pass": settings.pass_index,
                   "u_glossy_below": settings.glossy_below, "u_stop_factor": settings.stop_factor,
                   "u_steps": self.steps, "u_splat_budget": self.splat_budget,

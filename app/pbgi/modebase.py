@@ -70,6 +70,28 @@ class HeldCut:
 
 
 @dataclass
+class Layer:
+    """The whole layer a tile belongs to (the viewer's refinement: one pass of tiles, each a
+    render call of its own): its receivers, from one G-buffer, so that a cut finder can choose
+    what its receivers share over all of them (Hybrid's blocks, app/pbgi/farfield.py) and keep
+    it for the next tile - a tile's edge is then no edge of the picture."""
+    key: tuple                        # everything the layer's receivers and their cut depend on
+    width: int                        # the layer's width (pixels are row-major in the layer)
+    receivers: np.ndarray             # (L,) RECEIVER records of the layer, in image order
+    rows: np.ndarray                  # (count,) per frame receiver, its row in ``receivers``
+    coarse: np.ndarray | None = None  # (L,) lobe-only receivers: a group of their own (None)
+
+    def group_of(self, rows: np.ndarray) -> tuple:
+        """(tag, members) of a frame group whose receivers are layer ``rows``: the layer's
+        receivers of the same kind (lobe-only or not; the renderer never mixes them in a
+        group), sorted."""
+        if self.coarse is None or not len(rows):
+            return None, np.arange(len(self.receivers))
+        tag = bool(self.coarse[rows[0]])
+        return tag, np.flatnonzero(self.coarse == tag)
+
+
+@dataclass
 class Frame:
     """What the Relighter hands a mode: one tile's receivers and everything they are lit from."""
     params: RenderParams              # this render's (validated)
@@ -97,6 +119,7 @@ class Frame:
     groups: tuple = ()                # ((start, count, m), ...): consecutive runs of receivers
                                       # with their own micro-buffer size (renderer: lobe-only
                                       # receivers); empty = all ``count`` at ``m``
+    layer: Layer | None = None        # the layer the tile belongs to (the viewer), or None
 
     @property
     def m(self) -> int:

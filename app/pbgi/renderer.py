@@ -41,7 +41,7 @@ from app.pbgi.hierarchy import recolor
 from app.pbgi.microbuffer import MIN_SIZE, MicroBuffers, entries
 from app.pbgi.lobe import (LobeBuffers, LobeSettings, lobe_only_receivers, needs_lobe,
                            surface_radius)
-from app.pbgi.modebase import Frame, HeldCut, RenderMode, RenderParams
+from app.pbgi.modebase import Frame, HeldCut, Layer, RenderMode, RenderParams
 from app.pbgi.modes import create_mode
 from app.pbgi.nodetex import NodeTextures
 from app.pbgi.stats import MB, RenderStats
@@ -107,6 +107,7 @@ class Relighter:
         self.convex_shortcut = True
         self.upsampler = None              # app/pbgi/upsample.py's pass on this context, made
                                            # by the first render_upsampled below scale 1
+        self._layer_gb = None              # (key, G-buffer) of the last ``layer`` (render)
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -352,14 +353,19 @@ class Relighter:
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
                tile=None, pass_index: int = 0, pixels=None,
-               parts: bool = False) -> RenderResult:
+               parts: bool = False, layer=None) -> RenderResult:
         """Relight the asset seen by ``camera`` (``tile``: a part of the image).
         ``pass_index`` moves each pixel's sample inside the pixel (gbuffer.pass_jitter; pass 0
         is the centre) and re-jitters the lobe micro-buffers (app/pbgi/lobe.py): the mean of
         several passes is anti-aliased and averages the lobes' noise (``render_passes``).
         ``parts``: also return each pixel's gather split by BRDF factor (``RenderResult.parts``,
         app/pbgi/gather_parts.py), which a later edit of base colour, metallic, specular, sheen
-        or clearcoat amount recombines instead of gathering again (the viewer)."""
+        or clearcoat amount recombines instead of gathering again (the viewer).
+        ``layer``: a rectangle (x0, y0, w, h) holding ``tile``, of which this call is one tile
+        (the viewer's refinement): the layer's G-buffer is rasterised once for all its tiles of a
+        pass, and Hybrid chooses its blocks over the whole layer and keeps each block's walk for
+        the tiles that share it (app/pbgi/farfield.py, "Layers"), so the tiles add up to one
+        render of the layer and their edges show nowhere."""
         params = (params or RenderParams()).validated()
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
@@ -377,6 +383,13 @@ class Relighter:
         if w < 1 or h < 1 or x0 < 0 or y0 < 0 or x0 + w > W or y0 + h > H:
             raise ScanlightError(None, f"tile {tuple(tile)} is outside the {W}x{H} image")
         tile = (x0, y0, w, h)
+        if layer is not None:
+            lx, ly, lw, lh = (int(v) for v in layer)
+            if not (0 <= lx <= x0 and 0 <= ly <= y0 and x0 + w <= lx + lw <= W
+                    and y0 + h <= ly + lh <= H):
+                raise ScanlightError(None, f"tile {tile} is not inside the layer {tuple(layer)} "
+                                           f"of the {W}x{H} image")
+            layer = (lx, ly, lw, lh) if pixels is None else None
         m = m_lobe = int(params.microbuffer)       # the lobe buffers follow the M asked for
         small = max(int(params.lobe_only_microbuffer), MIN_SIZE)
         coarse_m = (params.mode != "envmap" and params.glossy_below > 0.0
@@ -397,13 +410,27 @@ class Relighter:
             ms_asset = self.asset_scene.seconds * 1e3
         ctx.finish()
         t0 = time.perf_counter()
-        gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
-        rec = gb["receivers"]
+        layer_key = None
+        if layer is not None:              # one G-buffer for all the layer's tiles of a pass
+            layer_key = (self._cloud_version, self._asset_version, params, layer,
+                         tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
+                         tuple(camera.up.tolist()), camera.fov_y_deg, W, H,
+                         pass_jitter(pass_index), material_table(materials).tobytes(),
+                         tuple(id(mt.normal_texture) for mt in materials), scene_key)
+            if self._layer_gb is None or self._layer_gb[0] != layer_key:
+                self._layer_gb = (layer_key, self.gbuffer.render(camera, materials, layer,
+                                                                 pass_jitter(pass_index)))
+            gb = _tile_of(self._layer_gb[1], x0 - layer[0], y0 - layer[1], w, h)
+        else:
+            gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
+        rec, rows = gb["receivers"], gb.get("rows")
         if pixels is not None:             # only these pixels' receivers (silhouette samples)
             rec = rec[np.asarray(pixels, bool).reshape(-1)[RECEIVER.view(rec)["pixel"]]]
-        rec = rec[np.argsort(z_order(RECEIVER.view(rec)["pixel"], w), kind="stable")]
+        order = np.argsort(z_order(RECEIVER.view(rec)["pixel"], w), kind="stable")
+        rec = rec[order]
+        rows = rows[order] if rows is not None else None
         n = len(rec)
-        groups, coarse_n = (), 0
+        groups, coarse_n, layer_coarse = (), 0, None
         if coarse_m and n:                 # lobe-only receivers: a coarse cosine micro-buffer
             v = RECEIVER.view(rec)
             coarse = lobe_only_receivers(v["metallic"], v["roughness"], params.glossy_below)
@@ -413,7 +440,12 @@ class Relighter:
                 params = replace(params, microbuffer=m)
             elif coarse_n:                 # two runs, each still in Z-order
                 rec = np.concatenate([rec[~coarse], rec[coarse]])
+                rows = np.concatenate([rows[~coarse], rows[coarse]]) if rows is not None else None
                 groups = ((0, n - coarse_n, m), (n - coarse_n, coarse_n, small))
+            if layer is not None:          # the layer's own split, for its groups of blocks
+                lv = RECEIVER.view(self._layer_gb[1]["receivers"])
+                layer_coarse = lobe_only_receivers(lv["metallic"], lv["roughness"],
+                                                   params.glossy_below)
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         runs = groups or ((0, n, m),)      # (start, count, M) of every run of receivers
         t1 = time.perf_counter()
@@ -461,7 +493,8 @@ class Relighter:
                    groups)
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
-            lobe = LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index)
+            lobe = replace(LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index),
+                           seed_tile=(x0, y0, w, W))
             if self._lobe is None:
                 self._lobe = LobeBuffers(ctx)
             stats.lobe_receivers = True
@@ -475,7 +508,10 @@ class Relighter:
                           environment=self.environment, lobe=lobe, lobe_buffers=self._lobe,
                           leaf_radius=self.leaf_radius if lobe is not None else 0.0,
                           absent_features=stats.absent_features, groups=groups,
-                          pass_index=int(pass_index), parts=bufs.get("parts"))
+                          pass_index=int(pass_index), parts=bufs.get("parts"),
+                          layer=None if layer is None else Layer(
+                              layer_key, layer[2], RECEIVER.view(self._layer_gb[1]["receivers"]),
+                              rows, layer_coarse))
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes
@@ -578,3 +614,15 @@ class Relighter:
                 obj.release()
         self.nodes_buf = self.node_tex = self._splat = self._env = self._lobe = None
         self._asset_scene = None
+
+
+def _tile_of(gb: dict, ox: int, oy: int, w: int, h: int) -> dict:
+    """The part of a layer's G-buffer (GBuffer.render) that a tile at (ox, oy) in it covers,
+    as the G-buffer of the tile itself; ``rows``: each receiver's row in the layer's."""
+    rec = gb["receivers"]
+    ys, xs = np.divmod(RECEIVER.view(rec)["pixel"].astype(np.int64), gb["width"])
+    rows = np.flatnonzero((xs >= ox) & (xs < ox + w) & (ys >= oy) & (ys < oy + h))
+    out = rec[rows]
+    RECEIVER.view(out)["pixel"] = ((ys[rows] - oy) * w + xs[rows] - ox).astype(np.uint32)
+    return {"receivers": out, "rows": rows, "coverage": gb["coverage"][oy:oy + h, ox:ox + w],
+            "width": w, "height": h, "bytes": gb["bytes"]}

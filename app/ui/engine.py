@@ -828,17 +828,18 @@ class ViewerEngine:
         self._room_dirty = True
         return True
 
-    def _render_gi(self, camera: Camera, tile, pass_index: int = 0):
+    def _render_gi(self, camera: Camera, tile, pass_index: int = 0, layer=None):
         """A's tile: texels and the gather in parts (``_on_materials`` recombines them)."""
         return self._gather(self.relighter, self.session.settings, camera, tile, pass_index,
-                            parts=True)
+                            layer, parts=True)
 
-    def _render_gi_b(self, camera: Camera, tile, pass_index: int = 0) -> np.ndarray:
+    def _render_gi_b(self, camera: Camera, tile, pass_index: int = 0,
+                     layer=None) -> np.ndarray:
         """B's layer: B's settings (app/ui/compare.py), B's renderer; its stats stay B's."""
         return self._gather(self.relighter_b, b_settings(self.session.settings), camera, tile,
-                            pass_index, keep_stats=False)
+                            pass_index, layer, keep_stats=False)
 
-    def _gather(self, relighter, s, camera: Camera, tile, pass_index: int = 0,
+    def _gather(self, relighter, s, camera: Camera, tile, pass_index: int = 0, layer=None,
                 keep_stats: bool = True, parts: bool = False):
         params = RenderParams.from_settings(s)
         if (self._interacting and params.asset_occlusion and relighter is not None
@@ -846,7 +847,8 @@ class ViewerEngine:
             params = replace(params, asset_occlusion=False)   # built after the drag
         try:
             res = relighter.render(camera, self.session.materials, params, tile=tile,
-                                   pass_index=pass_index, **({"parts": True} if parts else {}))
+                                   pass_index=pass_index, layer=layer,
+                                   **({"parts": True} if parts else {}))
         except Exception as exc:
             self.gi_failed = True
             self.report_failure("relighting", exc)

@@ -40,12 +40,18 @@ at least every budget or so, instead of after a run that overshot it several tim
    tiles run again with pass index 1, 2, ... (app/pbgi/gbuffer.py: pass_jitter moves each
    pixel's sample inside the pixel, app/pbgi/lobe.py rotates the glossy lobes' micro-buffers),
    and each texel shows the mean radiance of the passes that saw the asset there: edges and
-   mirror images are anti-aliased and the lobes' noise averages out. Each pass also moves the
-   tile grid (tile_offset): a tile is a render call of its own, and Hybrid's far-field blocks
-   end at its edges, which one pass shows as lines (demo close-up 96 x 96, cells of 16, 4
-   passes: across / inside the first pass's cell edges 1.42 on a fixed grid, 1.02 moved).
-   The compositor's silhouette comes from its own full-resolution G-buffer, so the mean is kept
-   unpremultiplied.
+   mirror images are anti-aliased and the lobes' noise averages out. The compositor's
+   silhouette comes from its own full-resolution G-buffer, so the mean is kept unpremultiplied.
+
+   A tile is a render call of its own, but each is told the layer it belongs to (``rect``): the
+   renderer rasterises the layer's G-buffer once per pass, Hybrid chooses its far-field blocks
+   over the whole layer and keeps a block's walk for the next tile that shares it, and a glossy
+   receiver's lobe is seeded by its pixel in the image (app/pbgi/renderer.py: ``layer``). So
+   the tiles of a pass add up to one render of the layer, and a tile's edge is nowhere in the
+   picture - before, each tile chose its own blocks, which ended at its edges: in one pass the
+   tile grid showed as lines (demo close-up 96 x 96, Hybrid M 16, cells of 16: the difference
+   across / inside the cell edges 1.74 against 1.15 for one render; 256 x 256, M 24, cells of
+   32: 1.83 against 1.34).
 
 4. *Recolouring* (``recolour``): the render function may also return each texel's gather split
    by BRDF factor (app/pbgi/gather_parts.py: GATHER_PARTS records), which the layer keeps -
@@ -56,9 +62,10 @@ at least every budget or so, instead of after a run that overshot it several tim
    after the edit as before it. A texel whose passes saw the edited material and another one
    (a boundary between two materials) cannot be split again: the caller gathers anew.
 
-The render function is injected (``render(camera, tile, pass_index) -> (h, w, 4) float32``
-GI_TEXEL texels: radiance, and 1 on the asset, 0 off it; or a pair of those texels and the
-tile's (h, w) GATHER_PARTS records): the viewer passes the real PBGI renderer; tests check
+The render function is injected (``render(camera, tile, pass_index, layer) -> (h, w, 4)
+float32`` GI_TEXEL texels: radiance, and 1 on the asset, 0 off it; or a pair of those texels and
+the tile's (h, w) GATHER_PARTS records; ``layer``: the rectangle a refinement tile belongs to,
+None for the preview): the viewer passes the real PBGI renderer; tests check
 the scheduling arithmetic with a fake clock (exact timings) and the tiling with the real
 renderer.
 """
@@ -71,7 +78,6 @@ import time
 import numpy as np
 
 from app.camera import Camera
-from app.pbgi.gbuffer import r2_point
 from app.pbgi.gather_parts import PART_WORDS, material_ids, part_records, part_words
 from app.pbgi.upsample import scaled_camera
 from app.render.gpu_layout import GI_PENDING, GI_TEXEL
@@ -145,32 +151,16 @@ def screen_rect(cam: Camera, lo, hi, pad: int = 2) -> tuple[int, int, int, int] 
     return x0, y0, x1 - x0, y1 - y0
 
 
-def strip_tiles(rect, cell: int = CELL,
-                offset=(0, 0)) -> list[list[tuple[int, int, int, int]]]:
-    """Cells of ``rect`` grouped by row band, bands ordered from the middle outwards.
-    ``offset`` (dx, dy): the cell grid moved left and up by that much, modulo the cell (the
-    cells on the rectangle's edges clipped): tile_offset's, per pass."""
+def strip_tiles(rect, cell: int = CELL) -> list[list[tuple[int, int, int, int]]]:
+    """Cells of ``rect`` grouped by row band, bands ordered from the middle outwards."""
     x0, y0, w, h = rect
-
-    def cuts(start: int, size: int, shift: int) -> list[tuple[int, int]]:
-        edges = [start] + [e for e in range(start - shift % cell + cell, start + size, cell)]
-        return [(a, min(b, start + size) - a) for a, b in zip(edges, edges[1:] + [start + size])]
-
-    bands = [[(x, y, cw, hh) for x, cw in cuts(x0, w, offset[0])]
-             for y, hh in cuts(y0, h, offset[1])]
+    bands = []
+    for y in range(y0, y0 + h, cell):
+        hh = min(cell, y0 + h - y)
+        bands.append([(x, y, min(cell, x0 + w - x), hh) for x in range(x0, x0 + w, cell)])
     mid = (len(bands) - 1) / 2
     order = sorted(range(len(bands)), key=lambda i: (abs(i - mid), i))
     return [bands[i] for i in order]
-
-
-def tile_offset(pass_index: int, cell: int) -> tuple[int, int]:
-    """The tile grid's offset for a pass (strip_tiles), (0, 0) for pass 0: the pass's point of
-    the R2 sequence times the cell. Why: each tile is a render call of its own, and Hybrid's
-    far-field blocks (app/pbgi/farfield.py) end at its edges - undithered, with block levels
-    fitted from one side - so a tile's edge shows as a line. Moved from pass to pass, the lines
-    of the passes the layer averages fall in different places."""
-    u, v = r2_point(int(pass_index))
-    return int(u * cell), int(v * cell)
 
 
 class ProgressiveGI:
@@ -339,8 +329,7 @@ class ProgressiveGI:
             self._hits = hit.astype(np.float32)
             self._sum = self.full[y:y + h, x:x + w, :3] * self._hits[..., None]
         self.pass_index += 1
-        cell = self.cell_size(budget_ms)
-        self._bands = strip_tiles(self.rect, cell, tile_offset(self.pass_index, cell))
+        self._bands = strip_tiles(self.rect, self.cell_size(budget_ms))
         self._cells_total = sum(len(b) for b in self._bands)
         self._cells_done = 0
 
@@ -383,7 +372,7 @@ class ProgressiveGI:
         x1 = min(int(math.ceil((rect[0] + rect[2]) * sx)) + 1, small.width)
         y1 = min(int(math.ceil((rect[1] + rect[3]) * sy)) + 1, small.height)
         t0 = self.clock()
-        lo, parts = _split(self.render(small, (x0, y0, x1 - x0, y1 - y0), 0))
+        lo, parts = _split(self.render(small, (x0, y0, x1 - x0, y1 - y0), 0, None))
         ms = (self.clock() - t0) * 1e3
         self.last_preview_ms = ms
         self.preview = gi_image(small.height, small.width)
@@ -432,14 +421,15 @@ class ProgressiveGI:
         band = self._bands[0]
         cells = 1
         if self.ms_per_px:
-            cell_px = max(c[2] for c in band) * band[0][3]   # an edge cell may be narrower
+            cell_px = band[0][2] * band[0][3]
             cells = max(1, int(budget_ms / (self.ms_per_px * cell_px)))
         run = band[:cells]
         x0, y0 = run[0][0], run[0][1]
         w = run[-1][0] + run[-1][2] - x0
         h = run[0][3]
         t0 = self.clock()
-        img, parts = _split(self.render(self.camera, (x0, y0, w, h), self.pass_index))
+        img, parts = _split(self.render(self.camera, (x0, y0, w, h), self.pass_index,
+                                           self.rect))
         self._learn((self.clock() - t0) * 1e3, img)
         self._keep_parts(img, parts, x0, y0)
         if self.pass_index == 0:

@@ -123,6 +123,15 @@ float lobe_spec_share(PrincipledPrepared q, float glossy_below) {
 // anisotropic lobe in m' is the isotropic lobe of a_w in m, and the rings and sectors of that
 // lobe put an equal share of the anisotropic lobe in every micro-pixel (an isotropic warp of an
 // anisotropic lobe left micro-pixels far wider than the lobe across it: fireflies).
+// The pixel a receiver's frame is seeded by: its pixel in the whole image, from its pixel in
+// the tile (LobeSettings.seed_tile: x0, y0, tile width, image width), so that a tile's seeds are
+// the ones one render of the image gives the same pixels, not the same in every tile.
+uniform uvec4 u_lobe_tile;
+uint lobe_seed_pixel(uint tile_pixel) {
+    uint w = max(u_lobe_tile.z, 1u);
+    return (u_lobe_tile.y + tile_pixel / w) * u_lobe_tile.w + u_lobe_tile.x + tile_pixel % w;
+}
+
 LobeFrame lobe_frame_for(PrincipledPrepared q, bvec2 terms, uint pixel, uint pass, uint rings,
                          uint sectors) {
     float aw = 1.0, amax = 0.0;

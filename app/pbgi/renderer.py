@@ -490,7 +490,7 @@ class Relighter:
                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, pass_jitter(pass_index),
                    tuple(id(mt.normal_texture) for mt in materials), scene_key,
                    None if pixels is None else hash(np.asarray(pixels, bool).tobytes()),
-                   groups)
+                   groups, layer)      # Hybrid's blocks are the layer's
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
             lobe = replace(LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index),
@@ -613,7 +613,7 @@ class Relighter:
             if obj is not None:
                 obj.release()
         self.nodes_buf = self.node_tex = self._splat = self._env = self._lobe = None
-        self._asset_scene = None
+        self._asset_scene = self._layer_gb = None
 
 
 def _tile_of(gb: dict, ox: int, oy: int, w: int, h: int) -> dict:

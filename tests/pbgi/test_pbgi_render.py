@@ -144,6 +144,10 @@ def test_bad_parameters_are_one_line_errors(furnace):
         assert "\n" not in str(err.value)
     with pytest.raises(ScanlightError):
         furnace.render(FURNACE_CAM, None, RenderParams(), tile=(20, 20, 10, 10))
+    for layer in ((4, 4, 8, 8), (0, 0, 25, 24)):      # not holding the tile; beyond the image
+        with pytest.raises(ScanlightError, match="not inside the layer") as err:
+            furnace.render(FURNACE_CAM, None, RenderParams(), tile=(2, 2, 8, 8), layer=layer)
+        assert "\n" not in str(err.value)
 
 
 def test_stats_contract(furnace):

@@ -122,9 +122,10 @@ the cell edges 1.74, against 1.15 in one render of the layer; 256 x 256, M 24, c
 1.83 against 1.34). A tile that names its layer is a batch of the layer's group instead: the
 Relighter rasterises the layer's G-buffer once per pass and hands each tile its rows of it, and
 the blocks are chosen over the whole layer at its first tile and kept (``_Group.key``: the
-layer's key, which holds everything the cut depends on) until every receiver of the layer has
-been filled (``pending``, ``left``); a later tile whose receivers were filled already (the same
-view begun again) begins the group anew. The tiles then add up to one render of the layer, to
+layer's view and its receivers' geometry - not their materials, which the viewer may edit in
+the middle of a pass and refine on) until every receiver of the layer has been filled
+(``pending``, ``left``); a later tile whose receivers were filled already (the same view begun
+again) begins the group anew. The tiles then add up to one render of the layer, to
 float rounding (tests/ui/test_ui_refine.py), at the cost of the tiles (the orbit at 900 x 520
 took as long as before).
 

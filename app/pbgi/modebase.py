@@ -75,7 +75,8 @@ class Layer:
     render call of its own): its receivers, from one G-buffer, so that a cut finder can choose
     what its receivers share over all of them (Hybrid's blocks, app/pbgi/farfield.py) and keep
     it for the next tile - a tile's edge is then no edge of the picture."""
-    key: tuple                        # everything the layer's receivers and their cut depend on
+    key: tuple                        # what the shared work depends on: the view, the scene,
+                                      # the receivers' geometry (not their materials)
     width: int                        # the layer's width (pixels are row-major in the layer)
     receivers: np.ndarray             # (L,) RECEIVER records of the layer, in image order
     rows: np.ndarray                  # (count,) per frame receiver, its row in ``receivers``

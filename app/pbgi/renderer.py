@@ -107,7 +107,7 @@ class Relighter:
         self.convex_shortcut = True
         self.upsampler = None              # app/pbgi/upsample.py's pass on this context, made
                                            # by the first render_upsampled below scale 1
-        self._layer_gb = None              # (key, G-buffer) of the last ``layer`` (render)
+        self._layer_gb = None              # the last ``layer``'s G-buffer and keys (render)
 
     # -- inputs -----------------------------------------------------------------------------
     def set_cloud(self, cloud, hierarchy=None) -> None:
@@ -410,17 +410,21 @@ class Relighter:
             ms_asset = self.asset_scene.seconds * 1e3
         ctx.finish()
         t0 = time.perf_counter()
-        layer_key = None
         if layer is not None:              # one G-buffer for all the layer's tiles of a pass
-            layer_key = (self._cloud_version, self._asset_version, params, layer,
-                         tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
-                         tuple(camera.up.tolist()), camera.fov_y_deg, W, H,
-                         pass_jitter(pass_index), material_table(materials).tobytes(),
-                         tuple(id(mt.normal_texture) for mt in materials), scene_key)
-            if self._layer_gb is None or self._layer_gb[0] != layer_key:
-                self._layer_gb = (layer_key, self.gbuffer.render(camera, materials, layer,
-                                                                 pass_jitter(pass_index)))
-            gb = _tile_of(self._layer_gb[1], x0 - layer[0], y0 - layer[1], w, h)
+            view = (self._cloud_version, self._asset_version, params, layer,
+                    tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
+                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, pass_jitter(pass_index),
+                    scene_key)
+            key = view + (material_table(materials).tobytes(),
+                          tuple(id(mt.normal_texture) for mt in materials))
+            if self._layer_gb is None or self._layer_gb["key"] != key:
+                lgb = self.gbuffer.render(camera, materials, layer, pass_jitter(pass_index))
+                lv = RECEIVER.view(lgb["receivers"])
+                # what Hybrid's blocks depend on: the view and the receivers' geometry, not
+                # their materials - the viewer recolours in the middle of a pass and goes on
+                self._layer_gb = {"key": key, "gb": lgb, "coarse": None, "shape": view + (
+                    _fingerprint(lv["position"], lv["normal"]),)}
+            gb = _tile_of(self._layer_gb["gb"], x0 - layer[0], y0 - layer[1], w, h)
         else:
             gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
         rec, rows = gb["receivers"], gb.get("rows")
@@ -443,9 +447,12 @@ class Relighter:
                 rows = np.concatenate([rows[~coarse], rows[coarse]]) if rows is not None else None
                 groups = ((0, n - coarse_n, m), (n - coarse_n, coarse_n, small))
             if layer is not None:          # the layer's own split, for its groups of blocks
-                lv = RECEIVER.view(self._layer_gb[1]["receivers"])
-                layer_coarse = lobe_only_receivers(lv["metallic"], lv["roughness"],
-                                                   params.glossy_below)
+                if self._layer_gb["coarse"] is None:
+                    lv = RECEIVER.view(self._layer_gb["gb"]["receivers"])
+                    mask = lobe_only_receivers(lv["metallic"], lv["roughness"],
+                                               params.glossy_below)
+                    self._layer_gb["coarse"] = (mask, _fingerprint(mask))
+                layer_coarse = self._layer_gb["coarse"][0]
         self.last_receivers = rec          # in the order of the micro-buffer rows (debugging)
         runs = groups or ((0, n, m),)      # (start, count, M) of every run of receivers
         t1 = time.perf_counter()
@@ -510,8 +517,10 @@ class Relighter:
                           absent_features=stats.absent_features, groups=groups,
                           pass_index=int(pass_index), parts=bufs.get("parts"),
                           layer=None if layer is None else Layer(
-                              layer_key, layer[2], RECEIVER.view(self._layer_gb[1]["receivers"]),
-                              rows, layer_coarse))
+                              self._layer_gb["shape"] + (
+                                  None if layer_coarse is None else self._layer_gb["coarse"][1],),
+                              layer[2], RECEIVER.view(self._layer_gb["gb"]["receivers"]), rows,
+                              layer_coarse))
             extra += self.mode_for(params).render(frame, stats)
             if lobe is not None:
                 extra += self._lobe.nbytes

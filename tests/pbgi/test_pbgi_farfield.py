@@ -165,6 +165,31 @@ def test_batches_the_budget_splits_a_frame_into_give_the_one_batch_image(demo_re
     assert np.abs(split.image - one.image).max() <= 1e-5 * mean
 
 
+def test_the_tiles_of_a_layer_walk_each_block_once_through_a_material_edit(demo_relighter):
+    """The viewer's tiles name their layer (Relighter.render(..., layer=)): they are batches of
+    one group over the layer, and together walk each of its blocks once, as one render of the
+    layer does. An edit of the material in the middle of the pass (the viewer recolours and
+    refines on) keeps the group: the blocks and their far-field walks depend on the receivers'
+    geometry, not on their material. Each tile is the one render's of its material."""
+    from app.demo.room import default_views
+    from app.material import Material
+    r = demo_relighter
+    cam, rect = default_views(96, 96)["closeup"], (0, 0, 96, 96)
+    p = RenderParams(mode="hybrid", microbuffer=16)
+    grey, red = S.diffuse(0.6), Material(base_color=(0.8, 0.1, 0.1), roughness=0.5)
+    walked, image = 0, np.zeros((96, 96, 4), np.float32)
+    for k, y in enumerate(range(0, 96, 16)):
+        res = r.render(cam, [grey if y < 48 else red], p, tile=(0, y, 96, 16), layer=rect)
+        walked += res.stats.share.share_blocks if res.stats.share else 0
+        image[y:y + 16] = res.image
+    r.forget_microbuffers()
+    one = {name: r.render(cam, [mat], p) for name, mat in (("grey", grey), ("red", red))}
+    assert walked == one["grey"].stats.share.share_blocks > 100
+    for half, name in ((slice(0, 48), "grey"), (slice(48, 96), "red")):
+        want = one[name].image[half]
+        assert np.abs(image[half] - want).max() <= 1e-5 * want[..., :3].max()
+
+
 def test_parallax_tolerance_is_validated():
     from app.errors import ScanlightError
     for bad in (-0.5, float("nan"), 5.0, True):

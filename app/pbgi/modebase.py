@@ -252,7 +252,8 @@ class CutFinder(ABC):
         """Receivers ``first`` .. ``first + count - 1`` of ``frame`` are about to be filled in
         one or more batches at size ``m``: a finder whose result for a receiver depends on its
         neighbours (Hybrid's blocks) decides it here for the whole group, so that where the
-        memory budget splits the group does not show in the image. Default: nothing."""
+        memory budget splits the group does not show in the image - or, for a tile of a layer
+        (``frame.layer``), for the whole layer, kept for its next tiles. Default: nothing."""
 
     @abstractmethod
     def release(self) -> None:

@@ -116,13 +116,6 @@ float lobe_spec_share(PrincipledPrepared q, float glossy_below) {
     return clamp((glossy_below - q.roughness) / (LOBE_BLEND * glossy_below), 0.0, 1.0);
 }
 
-// The frame for those lobes: the warp follows the narrowest, the domain covers the widest.
-// An anisotropic specular lobe alone (no clearcoat in the buffer) is mapped through the slope
-// stretch of GGX: slopes m' = (sx m.x, sy m.y) along the material's tangent X and bitangent Y,
-// sx = ax / a_w, sy = ay / a_w, a_w = sqrt(ax ay); the stretch has determinant 1, so the
-// anisotropic lobe in m' is the isotropic lobe of a_w in m, and the rings and sectors of that
-// lobe put an equal share of the anisotropic lobe in every micro-pixel (an isotropic warp of an
-// anisotropic lobe left micro-pixels far wider than the lobe across it: fireflies).
 // The pixel a receiver's frame is seeded by: its pixel in the whole image, from its pixel in
 // the tile (LobeSettings.seed_tile: x0, y0, tile width, image width), so that a tile's seeds are
 // the ones one render of the image gives the same pixels, not the same in every tile.
@@ -132,6 +125,13 @@ uint lobe_seed_pixel(uint tile_pixel) {
     return (u_lobe_tile.y + tile_pixel / w) * u_lobe_tile.w + u_lobe_tile.x + tile_pixel % w;
 }
 
+// The frame for those lobes: the warp follows the narrowest, the domain covers the widest.
+// An anisotropic specular lobe alone (no clearcoat in the buffer) is mapped through the slope
+// stretch of GGX: slopes m' = (sx m.x, sy m.y) along the material's tangent X and bitangent Y,
+// sx = ax / a_w, sy = ay / a_w, a_w = sqrt(ax ay); the stretch has determinant 1, so the
+// anisotropic lobe in m' is the isotropic lobe of a_w in m, and the rings and sectors of that
+// lobe put an equal share of the anisotropic lobe in every micro-pixel (an isotropic warp of an
+// anisotropic lobe left micro-pixels far wider than the lobe across it: fireflies).
 LobeFrame lobe_frame_for(PrincipledPrepared q, bvec2 terms, uint pixel, uint pass, uint rings,
                          uint sectors) {
     float aw = 1.0, amax = 0.0;

@@ -9,7 +9,8 @@ a declared count, never after decoding. A refusal is one ScanlightError line nam
 | ``MAX_CAMERA_PIXELS`` | 8192 x 8192 | a camera's image (view, capture or ``render --size``); a float RGBA image of it is 1 GiB |
 | ``MAX_CAMERA_SIDE`` | 16384 | one side of a camera image (a 16384-wide strip stays within the pixel limit) |
 | ``MAX_CAPTURE_PIXELS`` | 2^28 | all capture images of one expansion together (6 faces per cube map); 16 cube maps of 2048^2 |
-| ``MAX_COORD`` | 1e9 m | a position or translation further out is a typo, and its squares overflow float64 sums |
+| ``MAX_COORD`` | 1e9 m | a position or translation further out is a typo, and its squares overflow float64 sums; a cloud's points beyond it are dropped with a warning, like NaN positions |
+| ``MAX_RADIANCE`` | 1e15 | a colour or pixel value above it (about 10^6 times the sun's luminance in nits) is clamped to it with a warning: a float32 3e38 made the renderer's sums overflow to Inf |
 | ``MAX_IMAGE_PIXELS`` | 150 Mpixel | a photo (EXR/PNG/JPEG), read from its header: 1.8 GB as linear float RGB |
 | ``MAX_TEXTURE_PIXELS`` | 8192 x 8192 | one texture of a glTF or OBJ asset, read from its header |
 | ``MAX_JSON_BYTES`` | 64 MiB | a camera, object, material, session or capture-cameras file (ours are a few KB) |
@@ -33,6 +34,7 @@ MAX_CAMERA_SIDE = 16384
 MAX_CAMERA_PIXELS = 8192 * 8192
 MAX_CAPTURE_PIXELS = 2 ** 28
 MAX_COORD = 1e9
+MAX_RADIANCE = 1e15
 MAX_IMAGE_PIXELS = 150_000_000
 MAX_TEXTURE_PIXELS = 8192 * 8192
 MAX_JSON_BYTES = 64 << 20

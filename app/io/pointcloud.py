@@ -13,7 +13,9 @@ the colours were uchar or float. PCD goes through open3d after our own header ch
 silently pads a truncated ASCII PCD). Text formats carry no types: see ``_text_colors``.
 
 What the loader repairs is counted in ``cloud.report`` and logged as a warning:
-``dropped_nonfinite_positions``, ``clamped_{negative,nan,inf}_colors`` (see app.io.clean),
+``dropped_nonfinite_positions`` (NaN, Inf, or beyond app.io.limits.MAX_COORD: a point at 1e30
+m made the near and far planes of every camera meet), ``dropped_stray_points`` (``_not_stray``:
+a few points far out of a scan), ``clamped_{negative,nan,inf,huge}_colors`` (see app.io.clean),
 ``replaced_bad_normals`` (zero-length or non-finite normals, re-estimated), ``normals`` ("file" or
 "estimated"), and ``warnings`` (the human lines).
 
@@ -46,7 +48,7 @@ from app.errors import ScanlightError
 from app.hdr.result import LABEL_NAMES, PROVENANCE, PROVENANCE_ATTR, SCORE_ATTR
 from app.io.clean import clean_rgb, describe_counts
 from app.io.files import atomic_output, require_file
-from app.io.limits import MAX_PCD_HEADER, MAX_PLY_HEADER
+from app.io.limits import MAX_COORD, MAX_PCD_HEADER, MAX_PLY_HEADER
 
 log = logging.getLogger(__name__)
 
@@ -424,6 +426,22 @@ def _warn(report: dict, p: Path, msg: str) -> None:
     log.warning("%s: %s", p, msg)
 
 
+STRAY_FACTOR = 100.0
+
+
+def _not_stray(pos: np.ndarray) -> np.ndarray:
+    """False for the stray points of a scan: further from its median than STRAY_FACTOR times
+    the extent of its central 98% (the largest of the 1st-99th percentile ranges of x, y, z).
+    One stray point 1e8 m out in a 10 m room put every camera's near plane 10 km away and left
+    float32 coordinates 4 m steps: a silently black render. Real far points (a scanner seeing
+    a hill 2 km from a 50 m site) lie well within the factor."""
+    if len(pos) < 100:
+        return np.ones(len(pos), bool)
+    lo, mid, hi = np.quantile(pos, [0.01, 0.5, 0.99], axis=0)
+    extent = max(float((hi - lo).max()), 1e-3)
+    return np.all(np.abs(pos - mid) <= STRAY_FACTOR * extent, axis=1)
+
+
 def load_cloud(path) -> PointCloud:
     """Read a point cloud; repairs are counted in ``cloud.report`` (see the module docstring)."""
     p = require_file(path, "point cloud", CLOUD_EXTENSIONS)
@@ -437,16 +455,28 @@ def load_cloud(path) -> PointCloud:
     if len(pos) == 0:
         raise ScanlightError(p, "point cloud has no points")
 
-    finite = np.all(np.isfinite(pos), axis=1)
+    with np.errstate(invalid="ignore"):
+        finite = np.all(np.isfinite(pos), axis=1) & np.all(np.abs(pos) <= MAX_COORD, axis=1)
     report["dropped_nonfinite_positions"] = int((~finite).sum())
     if not finite.all():
+        beyond = f"lie beyond {MAX_COORD:g} m"
         if not finite.any():
-            raise ScanlightError(p, f"all {len(pos)} points have NaN or Inf positions")
-        _warn(report, p, f"dropped {int((~finite).sum())} points with NaN/Inf positions")
+            raise ScanlightError(p, f"all {len(pos)} points have NaN or Inf positions or {beyond}")
+        _warn(report, p, f"dropped {int((~finite).sum())} points with NaN/Inf positions or that "
+                         f"{beyond}")
         pos = pos[finite]
         normals = None if normals is None else normals[finite]
         colors = None if colors is None else colors[finite]
         attributes = {k: v[finite] for k, v in attributes.items()}
+    keep = _not_stray(pos)
+    report["dropped_stray_points"] = int((~keep).sum())
+    if not keep.all():
+        _warn(report, p, f"dropped {int((~keep).sum())} stray points more than {STRAY_FACTOR:g} "
+                         "times the scan's extent from its centre")
+        pos = pos[keep]
+        normals = None if normals is None else normals[keep]
+        colors = None if colors is None else colors[keep]
+        attributes = {k: v[keep] for k, v in attributes.items()}
 
     if colors is None:
         colors = np.full((len(pos), 3), DEFAULT_COLOR, dtype=np.float32)

@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.errors import ScanlightError
+from app.io.limits import MAX_RADIANCE
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
 from app.pbgi.gpu_layout import GATHER_OUTPUT, GATHER_PARTS, RECEIVER
 from app.pbgi.hierarchy import recolor
@@ -118,12 +119,17 @@ class Relighter:
             raise ScanlightError(cloud.source, "the point cloud is empty")
         # radiance is finite and non-negative (load_cloud repairs files: app.io.clean); checked
         # here for every path, the recolouring of a cached tree included, not only the BSH build
+        # and at most MAX_RADIANCE (float32 sums of 3e38 overflowed to Inf)
         bad = ~np.isfinite(cloud.colors).all(axis=1)
         neg = (cloud.colors < 0).any(axis=1)
-        if bad.any() or neg.any():
+        with np.errstate(invalid="ignore"):
+            huge = (cloud.colors > MAX_RADIANCE).any(axis=1) & ~bad
+        if bad.any() or neg.any() or huge.any():
+            above = f" and {int(huge.sum())} above {MAX_RADIANCE:g}" if huge.any() else ""
             raise ScanlightError(cloud.source, f"{int(bad.sum())} points have NaN or Inf colours "
-                                               f"and {int(neg.sum())} negative ones: radiance "
-                                               "must be finite and non-negative")
+                                               f"and {int(neg.sum())} negative ones{above}: "
+                                               "radiance must be finite and non-negative, at "
+                                               f"most {MAX_RADIANCE:g}")
         geo_key = _fingerprint(cloud.positions, cloud.normals)
         col_key = _fingerprint(cloud.colors)
         if hierarchy is None:
@@ -380,8 +386,10 @@ class Relighter:
                 params = replace(params, mode="envmap")
         W, H = camera.width, camera.height
         x0, y0, w, h = (int(v) for v in (tile if tile is not None else (0, 0, W, H)))
+        if W < 1 or H < 1:
+            raise ScanlightError(None, f"the camera's image of {W}x{H} pixels is empty")
         if w < 1 or h < 1 or x0 < 0 or y0 < 0 or x0 + w > W or y0 + h > H:
-            raise ScanlightError(None, f"tile {tuple(tile)} is outside the {W}x{H} image")
+            raise ScanlightError(None, f"tile {(x0, y0, w, h)} is outside the {W}x{H} image")
         tile = (x0, y0, w, h)
         if layer is not None:
             lx, ly, lw, lh = (int(v) for v in layer)

@@ -66,7 +66,8 @@ def near_far(camera: Camera, lo: np.ndarray, hi: np.ndarray) -> tuple[float, flo
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                         for z in (lo[2], hi[2])])
     far = float(np.linalg.norm(corners - camera.position, axis=1).max()) * 1.01 + 1e-3
-    return max(far * 1e-4, 1e-3), far
+    near = max(far * 1e-4, 1e-3)
+    return near, max(far, 2.0 * near)   # a box round the eye (one point): far must pass near
 
 
 def guard_camera(camera: Camera, guard: int) -> Camera:

@@ -13,6 +13,7 @@ from tests.support import scenes as S
 from app.cloud import PointCloud
 from app.errors import ScanlightError
 from app.io.clean import HALF_MAX
+from app.io.limits import MAX_RADIANCE
 from app.io.pointcloud import load_cloud
 from app.material import Material
 from app.pbgi.renderer import Relighter
@@ -99,13 +100,15 @@ def _write_float_ply(path, pos, nrm, rgb):
     path.write_bytes(head.encode() + data.tobytes())
 
 
-BAD = {"negative": -1.0, "nan": np.nan, "+inf": np.inf, "-inf": -np.inf}
+BAD = {"negative": -1.0, "nan": np.nan, "+inf": np.inf, "-inf": -np.inf, "3e38": 3e38}
 
 
 @pytest.mark.parametrize("mode", MODES)
 def test_bad_colours_in_a_file_are_repaired_before_the_renderer(tmp_path, mode):
-    """load_cloud (app.io.clean) sets negative and NaN colours to 0 and +Inf to 65504, and counts
-    them: what reaches the renderer is finite and non-negative, and so is the image."""
+    """load_cloud (app.io.clean) sets negative and NaN colours to 0, +Inf to 65504 and finite
+    values above MAX_RADIANCE (a float32 3e38) to it, and counts them: what reaches the renderer
+    is finite and non-negative, and so is the image (before: 3e38 overflowed to Inf and NaN in
+    the render with the scan's shadow, and in the evaluation's scale)."""
     room = S.box_room(0.1)
     rgb = room.colors.copy()
     for k, v in enumerate(BAD.values()):
@@ -114,8 +117,9 @@ def test_bad_colours_in_a_file_are_repaired_before_the_renderer(tmp_path, mode):
     cloud = load_cloud(tmp_path / "bad.ply")
     rep = cloud.report
     assert rep["clamped_nan_colors"] > 0 and rep["clamped_negative_colors"] > 0
-    assert rep["clamped_inf_colors"] > 0
+    assert rep["clamped_inf_colors"] > 0 and rep["clamped_huge_colors"] > 0
     assert np.isfinite(cloud.colors).all() and (cloud.colors >= 0).all()
+    assert cloud.colors.max() == np.float32(MAX_RADIANCE)
     r = Relighter()
     r.set_cloud(cloud)
     r.set_asset(S.sphere((0.0, 0.8, 0.0), 0.3, subdivisions=3))
@@ -145,6 +149,8 @@ def test_bad_colours_built_in_code_are_refused_by_the_renderer(path, bad):
     non_finite = n_bad if bad in ("nan", "+inf", "-inf") else 0
     negative = n_bad if bad in ("negative", "-inf") else 0
     want = f"{non_finite} points have NaN or Inf colours and {negative} negative ones"
+    if bad == "3e38":
+        want += f" and {n_bad} above {MAX_RADIANCE:g}"
 
     assert want in msg, msg
     assert "finite and non-negative" in msg

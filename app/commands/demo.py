@@ -15,21 +15,32 @@ def add_arguments(parser) -> None:
     from app.commands.options import add_param_options
     from app.demo.pipeline import DEFAULT_SIZE
     parser.add_argument("--out", default="scanlight-demo", help="output folder (created)")
+    from app.demo.pipeline import POINTS_RANGE, SIZE_RANGE
     parser.add_argument("--size", type=int, default=DEFAULT_SIZE,
-                        help=f"image size (square) of the renders (default {DEFAULT_SIZE})")
-    parser.add_argument("--points", type=int, default=200_000, help="points in the demo room")
+                        help=f"image size (square) of the renders (default {DEFAULT_SIZE}; "
+                             f"{SIZE_RANGE[0]} .. {SIZE_RANGE[1]})")
+    parser.add_argument("--points", type=int, default=200_000,
+                        help=f"points in the demo room (default 200000; "
+                             f"{POINTS_RANGE[0]} .. {POINTS_RANGE[1]})")
     add_param_options(parser, "demo")
 
 
 def run(args) -> int:
     from app.commands.options import param_values
     from app.demo import pipeline
+    from app.errors import UsageError
+    from app.io.outputs import check_output_folder
     out = Path(getattr(args, "out", "scanlight-demo"))
     size = getattr(args, "demo_size", None) or args.size  # `view` falls back here with its own args
+    n_points = getattr(args, "points", 200_000)
+    for flag, value, (lo, hi) in (("--size", size, pipeline.SIZE_RANGE),
+                                  ("--points", n_points, pipeline.POINTS_RANGE)):
+        if not lo <= value <= hi:
+            raise UsageError(None, f"{flag} must be {lo} .. {hi}, got {value}")
+    check_output_folder(out, "--out")
     tonemapper = param_values(args, "demo")["view.tonemap"]   # `view`'s args: the default
     t0 = time.perf_counter()
-    report = pipeline.run_demo(out, size=size, n_points=getattr(args, "points", 200_000),
-                               tonemapper=tonemapper)
+    report = pipeline.run_demo(out, size=size, n_points=n_points, tonemapper=tonemapper)
     report["seconds_total"] = round(time.perf_counter() - t0, 2)
     write_json(out / "report.json", report)
     print(f"demo done in {report['seconds_total']} s: images, contact_sheet.png and report.json "

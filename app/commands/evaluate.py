@@ -13,6 +13,9 @@ when not given.
 from __future__ import annotations
 
 from app.commands.options import add_param_options, param_values
+from app.errors import UsageError
+
+RENDER_SIZE = (16, 2048)    # --render-size: the relit comparison renders three clouds at it
 
 
 def add_arguments(parser) -> None:
@@ -31,7 +34,8 @@ def add_expansion_arguments(parser) -> None:
     parser.add_argument("--renderer", choices=("hybrid", "classic"), default="hybrid",
                         help="PBGI renderer for the relit-render error")
     parser.add_argument("--render-size", type=int, default=128,
-                        help="image size of the relit-render comparison (default 128)")
+                        help="image size of the relit-render comparison (default 128; "
+                             f"{RENDER_SIZE[0]} .. {RENDER_SIZE[1]})")
     parser.add_argument("--no-render", action="store_true",
                         help="skip the relit-render error (point errors only)")
     parser.add_argument("--json", metavar="PATH", help="write the metrics as JSON here")
@@ -51,6 +55,9 @@ def run_expansion(args) -> int:
     from app.io.pointcloud import load_cloud
 
     values = param_values(args, "evaluate")
+    if not args.no_render and not RENDER_SIZE[0] <= args.render_size <= RENDER_SIZE[1]:
+        raise UsageError(None, f"--render-size must be {RENDER_SIZE[0]} .. {RENDER_SIZE[1]}, "
+                               f"got {args.render_size}")
     check_outputs({"--cloud": args.cloud, "--gt": args.gt, "--ldr": args.ldr,
                    "--object": getattr(args, "object", None)}, {"--json": args.json})
     tl, alpha = values["hdr.threshold_ldr"], values["hdr.alpha"]

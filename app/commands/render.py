@@ -42,6 +42,7 @@ material of the asset; without it the asset's own (glTF/MTL) materials are used.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -102,6 +103,8 @@ def _check_args(args) -> dict:
         if w * h > MAX_PIXELS:
             raise UsageError(None, f"--size {w}x{h} is larger than the limit of {MAX_PIXELS:,} "
                                    "pixels (8192x8192)")
+    if not math.isfinite(args.hdri_rotation):
+        raise UsageError(None, f"--hdri-rotation must be a finite angle, got {args.hdri_rotation}")
     values = param_values(args, "render")
     if args.compare:
         from app.commands.compare import parse_side

@@ -33,6 +33,11 @@ from app.render.tonemap import DEFAULT as DEFAULT_TONEMAP, get as tonemap_get
 log = logging.getLogger(__name__)
 
 DEFAULT_SIZE = 192        # px of the renders: legible on the contact sheet (README: timings)
+SIZE_RANGE = (16, 4096)   # `demo --size`: 16 px still shows the sphere; 4096 is within every
+                          # camera limit (app.io.limits)
+# `demo --points`: below 10,000 points the photo sees too few scan points to register (the
+# expansion then refuses it as another room's); 5 M is five times the expansion bench's 1 M case
+POINTS_RANGE = (10_000, 5_000_000)
 HDR_ROOM_EXPOSURE = -2.0  # EV of the HDR and ground-truth room PNGs: lights 4-6 stops over 1
 
 _last_stage = [None]

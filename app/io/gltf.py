@@ -437,11 +437,14 @@ class _Reader:
             uvs = uvs[:, :2].astype(np.float64).copy()
             uvs[:, 1] = 1.0 - uvs[:, 1]
         lin = world[:3, :3]
-        pos = pos @ lin.T + world[:3, 3]
-        if normals is not None:
-            normals = normals[:, :3].astype(np.float64) @ np.linalg.inv(lin)
-        if np.linalg.det(lin) < 0:
-            faces = faces[:, ::-1]
+        # A node transform that overflows (a scale of 1e300) leaves vertices beyond MAX_COORD,
+        # which load_mesh refuses in one line: no numpy warnings on the way there.
+        with np.errstate(over="ignore", invalid="ignore"):
+            pos = pos @ lin.T + world[:3, 3]
+            if normals is not None:
+                normals = normals[:, :3].astype(np.float64) @ np.linalg.inv(lin)
+            if np.linalg.det(lin) < 0:
+                faces = faces[:, ::-1]
         return Primitive(pos, faces, normals, uvs, -1)
 
 

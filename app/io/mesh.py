@@ -29,6 +29,7 @@ import numpy as np
 
 from app.errors import ScanlightError
 from app.io.files import require_file
+from app.io.limits import MAX_COORD
 from app.material import Material
 
 log = logging.getLogger(__name__)
@@ -273,12 +274,14 @@ def load_mesh(path, normalize: bool = False) -> Mesh:
 
 
 def _check_finite(p: Path, positions: np.ndarray) -> None:
-    """Refuse NaN or infinite vertices (a "nan" or "1e999" in the file, or glTF node transforms
-    that overflow): they would render as nothing, with numpy warnings, instead of an error."""
-    bad = ~np.isfinite(positions).all(axis=1)
+    """Refuse NaN or infinite vertices, or vertices beyond MAX_COORD (a "nan" or "1e999" in the
+    file, or glTF node transforms that overflow): they would render as nothing, with numpy
+    warnings, instead of an error (a scale of 1e300 said "no triangle with an area")."""
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(positions) & (np.abs(positions) <= MAX_COORD)).all(axis=1)
     if bad.any():
         raise ScanlightError(p, f"mesh has {int(bad.sum()):,} vertices with NaN or infinite "
-                                "coordinates")
+                                f"coordinates or beyond {MAX_COORD:g} m")
 
 
 def _textures(m: Material) -> bool:
@@ -332,10 +335,14 @@ def _gltf_arrays(p: Path, warn):
     return pos, idx, nrm, uvs, mids, materials
 
 
-def _check_obj_indices(p: Path, data: bytes) -> None:
+def _check_obj_lines(p: Path, data: bytes) -> None:
     """OBJ indices are 1-based (negative: from the end); 0 is no vertex. trimesh would read it
-    as the last vertex and the asset would render silently wrong."""
+    as the last vertex and the asset would render silently wrong. A vertex needs x, y and z:
+    trimesh reads "v 0 0" as a 2-D point, which failed deep in the normals."""
     for n, line in enumerate(data.splitlines(), 1):
+        if line[:2] in (b"v ", b"v\t") and len(line.split()) < 4:
+            raise ScanlightError(p, f"line {n}: a vertex needs 3 coordinates, got "
+                                    f"{len(line.split()) - 1}")
         if line[:2] not in (b"f ", b"f\t"):
             continue
         for word in line.split()[1:]:
@@ -347,7 +354,7 @@ def _obj_arrays(p: Path, warn):
     import trimesh
 
     data = p.read_bytes()
-    _check_obj_indices(p, data)
+    _check_obj_lines(p, data)
     library = _read_mtl_libraries(p, data, warn)
     try:
         scene = trimesh.load_scene(str(p), file_type="obj", process=False, group_material=True)

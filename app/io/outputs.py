@@ -12,6 +12,8 @@ two. ``check_outputs`` refuses all of these up front, with one line naming the f
 - an output whose folder cannot be written: the nearest existing folder above it (missing
   folders are created when the output is written) must be a folder the user may write into.
 
+``check_output_folder`` does the same for a command whose output is a folder (``demo --out``).
+
 The writing itself stays atomic per file (app/io/files.py ``atomic_output``).
 """
 
@@ -42,6 +44,19 @@ def _writable_folder(p: Path, flag: str) -> None:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ScanlightError(p, f"{flag}: cannot write into the folder {parent} "
                                 "(permission denied)")
+
+
+def check_output_folder(p: Path, flag: str) -> None:
+    """An output *folder* (``demo --out``): an existing file there, or a folder the user may
+    not write into, is one line naming it (exit 3), before any work - not an OSError after it."""
+    p = Path(p)
+    if p.exists() and not p.is_dir():
+        raise ScanlightError(p, f"{flag} names a file, not a folder")
+    if p.is_dir():
+        if not os.access(p, os.W_OK | os.X_OK):
+            raise ScanlightError(p, f"{flag}: cannot write into the folder (permission denied)")
+        return
+    _writable_folder(p, flag)
 
 
 def check_outputs(inputs: dict, outputs: dict) -> None:

@@ -111,6 +111,18 @@ def test_gltf_cycle_is_refused(tmp_path):
     _refused(p, _load_mesh, "cycle")
 
 
+def test_gltf_node_scale_that_overflows_is_refused_without_numpy_warnings(tmp_path):
+    """A node matrix of 1e300 took the vertices to 1e300: numpy warned about an overflow in the
+    determinant and the error said "no triangle with an area"."""
+    import warnings
+    p = tmp_path / "huge.gltf"
+    p.write_text(json.dumps(_gltf([{"mesh": 0, "matrix": [1e300, 0, 0, 0, 0, 1e300, 0, 0,
+                                                          0, 0, 1e300, 0, 0, 0, 0, 1]}])))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _refused(p, _load_mesh, "beyond 1e+09 m")
+
+
 def test_gltf_shared_child_is_instanced(tmp_path):
     """A node under two parents (not a tree, but harmless) is drawn twice, not refused."""
     from app.io.mesh import load_mesh
@@ -120,7 +132,9 @@ def test_gltf_shared_child_is_instanced(tmp_path):
 
 
 @pytest.mark.parametrize("text,word", [("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "index 0"),
-                                       ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "area")])
+                                       ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "area"),
+                                       ("v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n",
+                                        "line 2: a vertex needs 3 coordinates, got 2")])
 def test_obj_silently_wrong_meshes(text, word, tmp_path):
     p = tmp_path / "bad.obj"
     p.write_text(text)
@@ -404,6 +418,53 @@ def test_object_scale_and_translate_limits(change, word, tmp_path):
     p = tmp_path / "obj.json"
     p.write_text(json.dumps({**OBJECT, **change}))
     _refused(p, _load_object, word)
+
+
+def _usage_cases(good, d) -> dict:
+    """Numbers that no command can use (found by fuzzing the command line: each one failed with
+    an internal error, a native abort or a MemoryError after a while) -> (argv, flag)."""
+    render = ["render", "--cloud", str(good / "room.ply"), "--object", str(good / "obj.json"),
+              "--camera", str(good / "cam.json"), "--out", str(d / "o.exr")]
+    evaluate = ["evaluate", "expansion", "--cloud", str(good / "room.ply"), "--gt",
+                str(good / "room.ply")]
+    demo = ["demo", "--out", str(d / "demo")]
+    return {"demo --size 0": (demo + ["--size", "0"], "--size"),
+            "demo --size 100000": (demo + ["--size", "100000"], "--size"),
+            "demo --points 1": (demo + ["--points", "1"], "--points"),
+            "demo --points 1e12": (demo + ["--points", "1000000000000"], "--points"),
+            "evaluate --render-size 0": (evaluate + ["--render-size", "0"], "--render-size"),
+            "evaluate --render-size 1e9": (evaluate + ["--render-size", "1000000000"],
+                                           "--render-size"),
+            "render --hdri-rotation nan": (render + ["--hdri", str(d / "p.exr"),
+                                                     "--hdri-rotation", "nan"], "--hdri-rotation")}
+
+
+USAGE_CASES = sorted(_usage_cases(Path("g"), Path("d")))
+
+
+@pytest.mark.parametrize("case", USAGE_CASES)
+def test_numbers_no_command_can_use_are_usage_errors(case, good, tmp_path, capsys):
+    """Exit 2 at once, one line naming the flag, nothing written."""
+    from app.cli import main
+    argv, flag = _usage_cases(good, tmp_path)[case]
+    t0 = time.perf_counter()
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and flag in err, err
+    assert time.perf_counter() - t0 < 10
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_demo_into_a_file_is_refused_in_one_line(tmp_path, capsys):
+    """Before: FileExistsError as an internal error (exit 1)."""
+    from app.cli import main
+    f = tmp_path / "taken.exr"
+    f.write_bytes(b"mine")
+    code = main(["demo", "--out", str(f), "--size", "16"])
+    err = capsys.readouterr().err.strip()
+    assert code == 3 and len(err.splitlines()) == 1 and str(f) in err and "not a folder" in err
+    assert f.read_bytes() == b"mine"
 
 
 def test_render_size_beyond_the_pixel_limit_is_a_usage_error(good, tmp_path, capsys):

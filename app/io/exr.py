@@ -15,8 +15,11 @@ its "beauty" layer (else the first RGB layer) and says which in ``report["layer"
 from __future__ import annotations
 
 import logging
+import os
 import re
+import threading
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -124,9 +127,57 @@ def _check_pixels(p: Path, width: int, height: int) -> None:
                                 f"{MAX_IMAGE_PIXELS:,} pixels")
 
 
+@contextmanager
+def _library_output():
+    """What the OpenEXR library prints while a file is read, collected into the list it yields:
+    for a truncated file its core writes "(EXR_ERR_BAD_CHUNK_LEADER) ..." to file descriptor 2
+    and its Python binding "Warning: Exception raised ..." to sys.stdout, where a command's
+    results go - two lines besides our one. Only on the main thread (the command line): in a
+    worker it would also swallow the other threads' output."""
+    out: list[str] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield out
+        return
+    import io
+    import sys
+    import tempfile
+    sys.stderr.flush()
+    saved_fd, saved_py = os.dup(2), (sys.stdout, sys.stderr)
+    said = io.StringIO()
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        sys.stdout = sys.stderr = said
+        try:
+            yield out
+        finally:
+            sys.stdout, sys.stderr = saved_py
+            os.dup2(saved_fd, 2)
+            os.close(saved_fd)
+            tmp.seek(0)
+            out.append(tmp.read().decode(errors="replace") + " " + said.getvalue())
+
+
 def _open_exr(p: Path):
     """(first part's channels: name -> 2-D pixels, its header, number of parts); the size is
-    checked from the header alone first, so nothing is allocated for a huge image."""
+    checked from the header alone first, so nothing is allocated for a huge image. What the
+    library prints goes into the one-line error of a failed read, or one warning line."""
+    err = None
+    with _library_output() as said:
+        try:
+            result = _read_exr_parts(p)
+        except ScanlightError as e:
+            err = e
+    text = " ".join("".join(said).split())[:300]
+    if err is not None:
+        if text:
+            raise ScanlightError(err.path, f"{err.reason}; the OpenEXR library said: {text}")
+        raise err
+    if text:
+        log.warning("%s: the OpenEXR library said: %s", p, text)
+    return result
+
+
+def _read_exr_parts(p: Path):
     import OpenEXR
 
     try:

@@ -156,6 +156,26 @@ def test_bad_exr_files(tmp_path, case, expect):
     assert str(p) in str(err.value) and expect in str(err.value)
 
 
+def test_a_truncated_exr_is_one_line_with_the_library_s_own_words_folded_in(tmp_path, capfd):
+    """The OpenEXR library printed its own two lines around ours (its core to stderr, its
+    binding to stdout, where a command's results go); now they are part of our one line."""
+    good = tmp_path / "good.exr"
+    write_exr(good, np.random.default_rng(4).random((512, 256, 3)).astype(np.float32) + 1)
+    p = tmp_path / "cut.exr"
+    p.write_bytes(good.read_bytes()[: good.stat().st_size * 6 // 10])
+    capfd.readouterr()
+    with pytest.raises(ScanlightError) as err:
+        read_image(p)
+    out, errs = capfd.readouterr()
+    assert out == "" and errs == ""
+    text = str(err.value)
+    assert "\n" not in text and "corrupt or truncated EXR" in text and "OpenEXR library" in text
+    # a good file says nothing, and nothing is left redirected
+    read_image(good)
+    print("still here")
+    assert capfd.readouterr().out == "still here\n"
+
+
 def test_truncated_png(tmp_path):
     write_png(tmp_path / "a.png", np.zeros((64, 64, 3), np.uint8) + 7)
     data = (tmp_path / "a.png").read_bytes()

@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import signal
 import sys
+import threading
 
 from app import __version__
 from app.bench import BENCHES
@@ -61,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(["view"] if argv is None else list(argv) + ["view"])
     from app.io.outputs import COMMITTED
     commits = len(COMMITTED)
+    previous = _stop_on_sigterm()
     try:
         return int(importlib.import_module(COMMANDS[command][0]).run(args) or 0)
     except ScanlightError as err:
@@ -75,13 +78,33 @@ def main(argv: list[str] | None = None) -> int:
         else:
             done = "; nothing written" if command in ("render", "expand", "evaluate") else ""
         print(f"scanlight {command}: interrupted{done}", file=sys.stderr)
-        return 130
+        return 143 if isinstance(sys.exc_info()[1], Terminated) else 130
     except Exception as exc:  # a bug, not bad input: one line, traceback with -v
         if args.verbose:
             log.exception("internal error")
         print(f"scanlight {command}: internal error: {type(exc).__name__}: {exc} "
               "(run with -v for the traceback)", file=sys.stderr)
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``timeout``, a render farm's kill): stopped as Ctrl-C stops a command - outputs
+    not yet committed are discarded, a worker process is ended - where the default action left
+    hidden temporaries beside the targets and an orphaned worker writing on. Exit 143."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def _stop_on_sigterm():
+    """Install the SIGTERM handler; returns the one it replaced (None off the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
 
 
 __all__ = ["main", "build_parser", "UsageError"]

@@ -77,8 +77,10 @@ def _rebuild(desc: tuple) -> BaseException:
     return RuntimeError(f"internal error: {desc[1]}")
 
 
-def _worker_main(work, request, messages, cancel):
-    """Runs in the worker (thread or process); every outcome is one message."""
+def _worker_main(work, request, messages, cancel, owner: bool = False):
+    """Runs in the worker (thread or process); every outcome is one message. ``owner``: run on
+    the owner's own thread (mode "sync"), where Ctrl-C and SIGTERM are the owner's to handle:
+    they propagate (as a "failed" message they became an internal error, exit 1, not 130)."""
 
     def progress(fraction, stage):
         messages.put(("progress", float(fraction), str(stage)))
@@ -88,6 +90,10 @@ def _worker_main(work, request, messages, cancel):
         messages.put(("done", result))
     except Cancelled:
         messages.put(("cancelled",))
+    except (KeyboardInterrupt, SystemExit) as exc:
+        if owner:
+            raise
+        messages.put(("failed", _describe(exc)))
     except BaseException as exc:  # noqa: BLE001 - the owner decides what to do with it
         messages.put(("failed", _describe(exc)))
 
@@ -155,7 +161,7 @@ class Job:
         self._started = time.perf_counter()
         self.state, self.stage = JobState.RUNNING, "starting"
         if self.mode == "sync":
-            _worker_main(self.work, self.request, self._messages, self._cancel)
+            _worker_main(self.work, self.request, self._messages, self._cancel, owner=True)
             self.poll()
         elif self.mode == "thread":
             self._worker = threading.Thread(target=_worker_main, name="scanlight-job", daemon=True,

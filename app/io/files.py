@@ -43,6 +43,8 @@ def atomic_output(path):
     the format from it.
     """
     p = Path(path)
+    if p.exists() and not p.is_file():     # a folder, /dev/null, a pipe: never replace it
+        raise ScanlightError(p, "is a folder or a special file, not a file to write")
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
     os.close(fd)

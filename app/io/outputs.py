@@ -8,7 +8,9 @@ two. ``check_outputs`` refuses all of these up front, with one line naming the f
 - an output that is the same file as an input: the same resolved path (symbolic links followed)
   or, when both exist, the same device and inode (hard links);
 - two outputs naming the same file;
-- an output that is an existing folder;
+- an output that is an existing folder, or a special file (a device, a pipe, a socket: the
+  rename at the end replaced them with a regular file - as root, ``--report /dev/null`` replaced
+  /dev/null);
 - an output whose folder cannot be written: the nearest existing folder above it (missing
   folders are created when the output is written) must be a folder the user may write into.
 
@@ -67,6 +69,9 @@ def check_outputs(inputs: dict, outputs: dict) -> None:
     for i, (flag, p) in enumerate(outs):
         if p.is_dir():
             raise ScanlightError(p, f"{flag} names a folder, not a file")
+        if p.exists() and not p.is_file():
+            raise ScanlightError(p, f"{flag} names a special file (a device, pipe or socket), "
+                                    "which the output would replace")
         for in_flag, q in ins:
             if q.exists() and _same_file(p, q):
                 raise ScanlightError(p, f"{flag} is the same file as the input {in_flag}: "
@@ -86,7 +91,7 @@ class OutputSet:
     ``with OutputSet({"--out": path, "--stats": path2}) as outs:`` then write each output to
     ``outs.temp(flag)`` (a hidden temporary beside its target, same extension, so writers that
     pick the format from it still work). Leaving the block normally renames every temporary over
-    its target, under an exclusive lock on this set of targets, with Ctrl-C held off for those
+    its target, under an exclusive lock on the targets' folders, with Ctrl-C held off for those
     few renames: two runs into the same outputs cannot interleave (one run's cloud with the
     other's report), and an interrupted run never leaves half of its outputs. Leaving it by an
     exception (an error, Ctrl-C) deletes the temporaries: nothing is written, and the caller
@@ -130,12 +135,9 @@ class OutputSet:
                 pass
         self._temps.clear()
 
-    def _lock_path(self) -> Path:
-        import hashlib
-        import tempfile
-        key = "\n".join(sorted(str(p.resolve()) for p in self.targets.values()))
-        return Path(tempfile.gettempdir()) / (
-            "scanlight-outputs-" + hashlib.sha256(key.encode()).hexdigest()[:16] + ".lock")
+    def _folders(self) -> list[Path]:
+        """The targets' folders, sorted (every process takes them in the same order)."""
+        return sorted({p.resolve().parent for p in self.targets.values()})
 
     def _commit(self) -> None:
         import fcntl
@@ -144,20 +146,28 @@ class OutputSet:
         os.umask(umask)
         previous = signal.getsignal(signal.SIGINT)
         in_main = _main_thread()
+        held: list[int] = []
         try:
-            with open(self._lock_path(), "a") as lock:
-                fcntl.flock(lock, fcntl.LOCK_EX)
-                if in_main:
-                    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the renames are one step
-                for flag, tmp in self._temps.items():
-                    os.chmod(tmp, 0o666 & ~umask)   # mkstemp makes 0600: outputs are user files
-                    os.replace(tmp, self.targets[flag])
-                COMMITTED.append(tuple(str(self.targets[f]) for f in self._temps))
-                self._temps.clear()
+            # The lock is an flock on each target's folder: a lock file per set of targets, in
+            # the temporary folder, was never removed (one per output set ever written), and
+            # removing it would race with a waiting process.
+            for folder in self._folders():
+                fd = os.open(folder, os.O_RDONLY)
+                held.append(fd)
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            if in_main:
+                signal.signal(signal.SIGINT, signal.SIG_IGN)  # the renames are one step
+            for flag, tmp in self._temps.items():
+                os.chmod(tmp, 0o666 & ~umask)   # mkstemp makes 0600: outputs are user files
+                os.replace(tmp, self.targets[flag])
+            COMMITTED.append(tuple(str(self.targets[f]) for f in self._temps))
+            self._temps.clear()
         except BaseException:
             self._discard()
             raise
         finally:
+            for fd in held:
+                os.close(fd)              # closing releases its flock
             if in_main:
                 signal.signal(signal.SIGINT, previous)
 

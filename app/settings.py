@@ -28,7 +28,7 @@ import numpy as np
 
 from app.camera import Camera, camera_from_dict
 from app.errors import ScanlightError
-from app.io.limits import OBJECT_SCALE
+from app.io.limits import MAX_COORD, OBJECT_SCALE
 from app.io.schema import Fields, show
 from app.material import Material, material_from_dict
 from app.params import BY_KEY, CUSTOM_QUALITY, PARAMS, QUALITY_KEYS, QUALITY_PRESETS, REDO
@@ -239,6 +239,21 @@ class Session:
         self.settings.mark(f"files.{which}")
 
     def set_transform(self, transform: AssetTransform) -> None:
+        """The gizmo, the panel or a script moves the asset; a NaN or a value beyond the limits
+        (which the next frame failed on, as an internal error) is one line here."""
+        try:
+            values = np.asarray([*transform.translate, *transform.rotate_deg, transform.scale],
+                                dtype=np.float64)
+        except (TypeError, ValueError):
+            values = np.array([np.nan])
+        if values.shape != (7,) or not np.isfinite(values).all():
+            raise ScanlightError(self.path, "asset transform must be 3 + 3 + 1 finite numbers, "
+                                            f"got {transform}")
+        if (np.abs(values[:3]).max() > MAX_COORD
+                or not OBJECT_SCALE[0] <= transform.scale <= OBJECT_SCALE[1]):
+            raise ScanlightError(self.path, f"asset transform beyond the limits (translate within "
+                                            f"{MAX_COORD:g} m, scale {OBJECT_SCALE[0]:g} .. "
+                                            f"{OBJECT_SCALE[1]:g}), got {transform.to_dict()}")
         if transform != self.transform:
             self.transform = transform
             self.settings.mark("asset.transform")
@@ -318,7 +333,8 @@ def session_from_dict(d: dict, base: Path, source=None) -> Session:
     then clamped as the viewer's sliders clamp)."""
     if not isinstance(d, dict) or "scanlight_session" not in d:
         raise ScanlightError(source, "not a Scanlight session (no 'scanlight_session' key)")
-    if d["scanlight_session"] != SESSION_VERSION:
+    version = d["scanlight_session"]
+    if isinstance(version, bool) or version != SESSION_VERSION:     # true == 1 in Python
         raise ScanlightError(source, f"session version {show(d['scanlight_session'])} is not "
                                      f"supported (this build reads version {SESSION_VERSION})")
     top = Fields(d, "session", source)

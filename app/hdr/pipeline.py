@@ -138,6 +138,9 @@ def validate_photo(photo, names=None) -> tuple[np.ndarray, list[str]]:
     return rgb, warnings
 
 
+MIN_CAPTURE_SIDE = 8     # pixels per side of a single-view capture camera, like the photo's
+
+
 def normalise_cameras(capture_cameras, names=None) -> list:
     """Capture cameras as a list of positions (cube maps) and Camera objects (single views)."""
     src = _name(names, "cameras")
@@ -147,6 +150,11 @@ def normalise_cameras(capture_cameras, names=None) -> list:
     out = []
     for i, c in enumerate(items):
         if isinstance(c, Camera):
+            if min(c.width, c.height) < MIN_CAPTURE_SIDE:
+                # a 16384 x 1 view left nothing to filter (an internal error deep in the capture)
+                raise ScanlightError(src, f"capture camera {i}: a view of {c.width}x{c.height} "
+                                          f"pixels is too thin; each side needs at least "
+                                          f"{MIN_CAPTURE_SIDE}")
             out.append(c)
             continue
         p = np.asarray(c, dtype=np.float64)

@@ -36,6 +36,8 @@ def show(value, limit: int = 40) -> str:
 
 def json_depth(doc) -> int:
     """Nesting depth of a parsed JSON value (a scalar is 0, ``[]`` and ``{}`` are 1)."""
+    if not isinstance(doc, (dict, list)):
+        return 0                      # a bare null, 42 or true: iterating it was a TypeError
     deepest, stack = 0, [(doc, 1)]
     while stack:
         value, depth = stack.pop()

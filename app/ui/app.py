@@ -36,6 +36,12 @@ def parse_size(text) -> tuple[int, int]:
     return camera_parse_size(text, minimum=16)
 
 
+# The viewer's side limit: its splat pass draws a guard band around the window, so a side near
+# the 16384 of app.io.limits overflowed llvmpipe's largest framebuffer (16383 x 16: "framebuffer
+# is not complete", an internal error); no screen is wider than 8192.
+VIEWER_MAX_SIDE = 8192
+
+
 def load_script(path):
     """The ``on_frame(viewer, frame_index)`` function of the script file ``path``; a missing or
     broken file is a ScanlightError naming it."""
@@ -53,7 +59,19 @@ def load_script(path):
             from exc
     if not callable(getattr(mod, "on_frame", None)):
         raise ScanlightError(p, "the script defines no on_frame(viewer, frame_index) function")
-    return mod.on_frame
+    on_frame = mod.on_frame
+
+    def run_script(viewer, frame_index):
+        # a script's own error (a raise, a wrong signature, a bad value handed to the viewer) is
+        # the script's line, exit 3, not an internal error of the viewer
+        try:
+            return on_frame(viewer, frame_index)
+        except ScanlightError as err:     # a value the viewer refused: say which script sent it
+            raise ScanlightError(p, f"on_frame failed at frame {frame_index}: {err}") from err
+        except Exception as exc:
+            raise ScanlightError(p, f"on_frame failed at frame {frame_index}: "
+                                    f"{type(exc).__name__}: {exc}") from exc
+    return run_script
 
 
 def open_session(args, cloud: str | None = None, asset: str | None = None) -> Session:
@@ -131,10 +149,27 @@ class OffscreenViewer:
         return 0
 
 
+def _check_screenshot(shot: str, session: Session, paths) -> None:
+    """--screenshot and the EXR written beside it name no file the viewer reads (the session, its
+    cloud, photo or asset, the script: a session photo.exr was overwritten by photo.png's EXR),
+    no folder and no special file (app.io.outputs.check_outputs)."""
+    from app.io.outputs import check_outputs
+    ins = [session.path, session.cloud, session.photo, session.hdr_cloud, session.asset,
+           session.hdri, *paths]
+    names = ("--session", "the session's cloud", "the session's photo", "the session's HDR cloud",
+             "the session's asset", "the session's HDRI", "CLOUD", "ASSET", "--script")
+    inputs = {n: str(p) for n, p in zip(names, ins) if p and Path(str(p)).exists()}
+    check_outputs(inputs, {"--screenshot": shot,
+                           "--screenshot's EXR": str(Path(shot).with_suffix(".exr"))})
+
+
 def run_viewer(args) -> int:
     from app.commands.asset_args import placement_options
     from app.ui.files import open_at_start, startup_files
     size = parse_size(getattr(args, "size", "1280x800"))
+    if max(size) > VIEWER_MAX_SIDE:
+        raise UsageError(None, f"--size: a viewer side of more than {VIEWER_MAX_SIDE} pixels is "
+                               f"not supported, got {size[0]}x{size[1]}")
     placement = placement_options(args)
     cloud, asset = startup_files([p for p in (getattr(args, "cloud", None),
                                               getattr(args, "asset", None)) if p])
@@ -152,6 +187,8 @@ def run_viewer(args) -> int:
     if shot and Path(shot).suffix.lower() != ".png":
         raise UsageError(None, f"--screenshot must name a .png file (an .exr of the linear "
                                f"image is written beside it), got {shot!r}")
+    if shot:
+        _check_screenshot(shot, session, [cloud, asset, script_path])
     if getattr(args, "offscreen", False):
         viewer = OffscreenViewer(session, size, script, relighter=Relighter,
                                  script_args=script_args)

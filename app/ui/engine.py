@@ -215,7 +215,8 @@ class ViewerEngine:
         return self.relighter is not None
 
     def load_cloud(self) -> None:
-        loaded = self.guard("opening the point cloud", load_cloud_files, self.session)
+        loaded = self.guard("opening the scan (its clouds and photo)", load_cloud_files,
+                            self.session)
         if loaded is None:
             if self.cloud is None:  # nothing to show yet: an empty room
                 from app.cloud import PointCloud

@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     except ScanlightError as err:
         print(f"scanlight {command}: error: {err}", file=sys.stderr)
         return err.exit_code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
         if command == "turntable":   # one output set per frame: the finished ones stay
             done = f"; {len(COMMITTED) - commits} complete output set(s) kept, none partial"
         elif len(COMMITTED) > commits:   # Ctrl-C came after the outputs were all in place
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             done = "; nothing written" if command in ("render", "expand", "evaluate") else ""
         print(f"scanlight {command}: interrupted{done}", file=sys.stderr)
-        return 143 if isinstance(sys.exc_info()[1], Terminated) else 130
+        return 143 if isinstance(stop, Terminated) else 130
     except Exception as exc:  # a bug, not bad input: one line, traceback with -v
         if args.verbose:
             log.exception("internal error")

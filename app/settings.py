@@ -250,7 +250,7 @@ class Session:
             raise ScanlightError(self.path, "asset transform must be 3 + 3 + 1 finite numbers, "
                                             f"got {transform}")
         if (np.abs(values[:3]).max() > MAX_COORD
-                or not OBJECT_SCALE[0] <= transform.scale <= OBJECT_SCALE[1]):
+                or not OBJECT_SCALE[0] <= values[6] <= OBJECT_SCALE[1]):
             raise ScanlightError(self.path, f"asset transform beyond the limits (translate within "
                                             f"{MAX_COORD:g} m, scale {OBJECT_SCALE[0]:g} .. "
                                             f"{OBJECT_SCALE[1]:g}), got {transform.to_dict()}")
@@ -335,7 +335,7 @@ def session_from_dict(d: dict, base: Path, source=None) -> Session:
         raise ScanlightError(source, "not a Scanlight session (no 'scanlight_session' key)")
     version = d["scanlight_session"]
     if isinstance(version, bool) or version != SESSION_VERSION:     # true == 1 in Python
-        raise ScanlightError(source, f"session version {show(d['scanlight_session'])} is not "
+        raise ScanlightError(source, f"session version {show(version)} is not "
                                      f"supported (this build reads version {SESSION_VERSION})")
     top = Fields(d, "session", source)
     files = Fields(top.optional("files", dict, {}), "session 'files'", source,

@@ -13,9 +13,8 @@ log = logging.getLogger(__name__)
 
 def add_arguments(parser) -> None:
     from app.commands.options import add_param_options
-    from app.demo.pipeline import DEFAULT_SIZE
+    from app.demo.pipeline import DEFAULT_SIZE, POINTS_RANGE, SIZE_RANGE
     parser.add_argument("--out", default="scanlight-demo", help="output folder (created)")
-    from app.demo.pipeline import POINTS_RANGE, SIZE_RANGE
     parser.add_argument("--size", type=int, default=DEFAULT_SIZE,
                         help=f"image size (square) of the renders (default {DEFAULT_SIZE}; "
                              f"{SIZE_RANGE[0]} .. {SIZE_RANGE[1]})")

@@ -442,6 +442,13 @@ def _not_stray(pos: np.ndarray) -> np.ndarray:
     return np.all(np.abs(pos - mid) <= STRAY_FACTOR * extent, axis=1)
 
 
+def _rows(mask, pos, normals, colors, attributes):
+    """The points where ``mask`` holds, with their normals, colours (either may be None) and
+    per-point attributes."""
+    return (pos[mask], None if normals is None else normals[mask],
+            None if colors is None else colors[mask], {k: v[mask] for k, v in attributes.items()})
+
+
 def load_cloud(path) -> PointCloud:
     """Read a point cloud; repairs are counted in ``cloud.report`` (see the module docstring)."""
     p = require_file(path, "point cloud", CLOUD_EXTENSIONS)
@@ -464,19 +471,13 @@ def load_cloud(path) -> PointCloud:
             raise ScanlightError(p, f"all {len(pos)} points have NaN or Inf positions or {beyond}")
         _warn(report, p, f"dropped {int((~finite).sum())} points with NaN/Inf positions or that "
                          f"{beyond}")
-        pos = pos[finite]
-        normals = None if normals is None else normals[finite]
-        colors = None if colors is None else colors[finite]
-        attributes = {k: v[finite] for k, v in attributes.items()}
+        pos, normals, colors, attributes = _rows(finite, pos, normals, colors, attributes)
     keep = _not_stray(pos)
     report["dropped_stray_points"] = int((~keep).sum())
     if not keep.all():
         _warn(report, p, f"dropped {int((~keep).sum())} stray points more than {STRAY_FACTOR:g} "
                          "times the scan's extent from its centre")
-        pos = pos[keep]
-        normals = None if normals is None else normals[keep]
-        colors = None if colors is None else colors[keep]
-        attributes = {k: v[keep] for k, v in attributes.items()}
+        pos, normals, colors, attributes = _rows(keep, pos, normals, colors, attributes)
 
     if colors is None:
         colors = np.full((len(pos), 3), DEFAULT_COLOR, dtype=np.float32)

@@ -31,15 +31,20 @@ from app.ui import demo_light
 log = logging.getLogger(__name__)
 
 
-def parse_size(text) -> tuple[int, int]:
-    """The window size: at least 16x16 so the panels and the viewport fit."""
-    return camera_parse_size(text, minimum=16)
-
-
 # The viewer's side limit: its splat pass draws a guard band around the window, so a side near
 # the 16384 of app.io.limits overflowed llvmpipe's largest framebuffer (16383 x 16: "framebuffer
 # is not complete", an internal error); no screen is wider than 8192.
 VIEWER_MAX_SIDE = 8192
+
+
+def parse_size(text) -> tuple[int, int]:
+    """The window size: at least 16x16 so the panels and the viewport fit, at most
+    VIEWER_MAX_SIDE a side."""
+    size = camera_parse_size(text, minimum=16)
+    if max(size) > VIEWER_MAX_SIDE:
+        raise UsageError(None, f"--size: a viewer side of more than {VIEWER_MAX_SIDE} pixels is "
+                               f"not supported, got {size[0]}x{size[1]}")
+    return size
 
 
 def load_script(path):
@@ -167,9 +172,6 @@ def run_viewer(args) -> int:
     from app.commands.asset_args import placement_options
     from app.ui.files import open_at_start, startup_files
     size = parse_size(getattr(args, "size", "1280x800"))
-    if max(size) > VIEWER_MAX_SIDE:
-        raise UsageError(None, f"--size: a viewer side of more than {VIEWER_MAX_SIDE} pixels is "
-                               f"not supported, got {size[0]}x{size[1]}")
     placement = placement_options(args)
     cloud, asset = startup_files([p for p in (getattr(args, "cloud", None),
                                               getattr(args, "asset", None)) if p])

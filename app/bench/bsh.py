@@ -13,16 +13,13 @@ import math
 
 import numpy as np
 
+from app.bench.arguments import int_list
 from app.bench.records import record
 from app.pbgi.hierarchy import STAGES, build_bsh
 
 
-def _int_list(text: str) -> list[int]:
-    return [int(float(t)) for t in str(text).split(",") if t.strip()]
-
-
 def add_arguments(parser) -> None:
-    parser.add_argument("--points", type=_int_list, default=[100_000, 1_000_000, 3_000_000],
+    parser.add_argument("--points", type=int_list, default=[100_000, 1_000_000, 3_000_000],
                         help="comma-separated cloud sizes (default 100000,1000000,3000000)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeat", type=int, default=1, help="builds per size; the fastest counts")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 
+from app.bench.arguments import int_list
 from app.bench.records import record
 from app.commands.options import add_param_options, param_values
 from app.errors import UsageError
@@ -23,21 +24,10 @@ MICROBUFFERS = (16, 24, 32)
 VIEWS = ("closeup", "whole")
 
 
-def _ints(text: str, name: str) -> list[int]:
-    try:
-        vals = [int(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise UsageError(None, f"--{name} must be a comma-separated list of integers, "
-                               f"got {text!r}") from None
-    if not vals:
-        raise UsageError(None, f"--{name} is empty")
-    return vals
-
-
 def add_arguments(parser) -> None:
-    parser.add_argument("--viewports", default=",".join(map(str, VIEWPORTS)),
+    parser.add_argument("--viewports", type=int_list, default=list(VIEWPORTS),
                         help="comma-separated square viewport sizes (default 128,256,512)")
-    parser.add_argument("--microbuffers", default=",".join(map(str, MICROBUFFERS)),
+    parser.add_argument("--microbuffers", type=int_list, default=list(MICROBUFFERS),
                         help="comma-separated micro-buffer sizes (default 16,24,32)")
     parser.add_argument("--views", default=",".join(VIEWS), help="closeup,whole (default both)")
     parser.add_argument("--modes", default="classic", help="classic and/or envmap")
@@ -54,8 +44,7 @@ def run(args) -> list[dict]:
     from app.params import BY_KEY, RENDER_MODES
     from app.pbgi.renderer import Relighter, RenderParams
 
-    viewports = _ints(args.viewports, "viewports")
-    sizes = _ints(args.microbuffers, "microbuffers")
+    viewports, sizes = args.viewports, args.microbuffers
     views = [v.strip() for v in args.views.split(",") if v.strip()]
     modes = [v.strip() for v in args.modes.split(",") if v.strip()]
     if any(v not in VIEWS for v in views) or not views:

@@ -31,6 +31,7 @@ import time
 
 import numpy as np
 
+from app.bench.arguments import int_list
 from app.bench.records import record
 from app.commands.options import add_param_options, param_values
 
@@ -57,10 +58,6 @@ PAPER_TABLE3 = {
 }
 
 
-def _ints(text: str) -> list[int]:
-    return [int(t) for t in str(text).split(",") if t.strip()]
-
-
 def _names(allowed):
     def parse(text: str) -> list[str]:
         out = [t.strip() for t in str(text).split(",") if t.strip()]
@@ -73,9 +70,9 @@ def _names(allowed):
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--viewports", type=_ints, default=[128, 256, 512, 1024],
+    parser.add_argument("--viewports", type=int_list, default=[128, 256, 512, 1024],
                         help="comma-separated square viewport sizes (default 128,256,512,1024)")
-    parser.add_argument("--microbuffers", type=_ints, default=[16, 24, 32],
+    parser.add_argument("--microbuffers", type=int_list, default=[16, 24, 32],
                         help="comma-separated micro-buffer sizes (default 16,24,32)")
     parser.add_argument("--views", type=_names(ALL_VIEWS), default=list(ALL_VIEWS),
                         help="comma-separated views: closeup, whole (default both)")

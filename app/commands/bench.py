@@ -36,7 +36,7 @@ def _check_numbers(args) -> None:
         for v in (value if isinstance(value, (list, tuple)) else [value]):
             if v is not None and not lo <= v <= hi:      # NaN fails both comparisons
                 raise UsageError(None, f"--{dest.replace('_', '-')} must be {lo:g} .. {hi:g}, "
-                                       f"got {v}")
+                                       f"got {v:g}")
 
 
 def run(args) -> int:

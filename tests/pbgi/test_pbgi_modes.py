@@ -310,6 +310,20 @@ def test_table3_records_and_markdown(capsys):
     assert "hybrid vs classic: mean / 99th-percentile per-pixel difference (%)" in out
 
 
+def test_bench_classic_from_the_command_line(capsys):
+    """`scanlight bench classic` as the README shows it: its list flags parsed as numbers (as
+    strings they reached the shared range check and every run, flags or none, ended in a
+    TypeError, exit 1)."""
+    from app.cli import main
+    assert main(["bench", "classic", "--viewports", "16", "--microbuffers", "8", "--views",
+                 "closeup", "--points", "20000"]) == 0
+    out = capsys.readouterr().out
+    assert "classic" in out and "closeup" in out
+    with pytest.raises(SystemExit) as e:              # argparse's own usage error
+        main(["bench", "classic", "--microbuffers", "8,x"])
+    assert e.value.code == 2 and "--microbuffers" in capsys.readouterr().err
+
+
 def test_render_cli_modes_give_classic_s_image(tmp_path):
     """`scanlight render --mode mipmapped|hybrid --parallax-tolerance 0` writes the same EXR as
     --mode classic (the same cut), with the per-mode figures in the stats JSON; the default

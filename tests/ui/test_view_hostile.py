@@ -142,6 +142,7 @@ def test_expand_params_that_are_not_an_object(expand_inputs, capsys):
     (["expand", "--points", "0"], "--points"),
     (["profile", "--viewport", "0"], "--viewport"),
     (["table3", "--viewports", "0"], "--viewports"),
+    (["classic", "--viewports", "4"], "--viewports"),
     (["profile", "--repeat", "0"], "--repeat"),
     (["viewer", "--timeout", "nan"], "--timeout"),
 ])

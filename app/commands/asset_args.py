@@ -84,7 +84,8 @@ def check_object_args(args) -> None:
         given = [f for f, v in (("--fit", fit), ("--translate", translate),
                                 ("--rotate", rotate)) if v is not None]
         if given:
-            raise UsageError(None, f"{', '.join(given)} only apply to a mesh given directly; "
+            verb = "applies" if len(given) == 1 else "apply"
+            raise UsageError(None, f"{', '.join(given)} only {verb} to a mesh given directly; "
                                    f"the object JSON {name} carries its own placement "
                                    "(translate, scale, rotate_deg)")
     if name not in BUILTIN_MESHES:

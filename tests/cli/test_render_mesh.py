@@ -127,7 +127,7 @@ def test_the_object_json_is_placed_as_before(inputs):
     ("cube.obj", ("--fit", "nan"), 2, "--fit must be a size in metres"),
     ("cube.obj", ("--translate", "1,2"), 2, "--translate expects three finite numbers"),
     ("cube.obj", ("--rotate", "a,b,c"), 2, "--rotate expects three finite numbers"),
-    ("obj.json", ("--fit", "1"), 2, "only apply to a mesh given directly"),
+    ("obj.json", ("--fit", "1"), 2, "--fit only applies to a mesh given directly"),
     ("room.ply", (), 3, "unsupported object file extension"),
 ])
 def test_bad_objects_are_one_line(inputs, capsys, obj, extra, code, text):

@@ -29,8 +29,9 @@ The ``--out`` EXR carries that alpha too (channels R, G, B, A; A = coverage, RGB
 with ``--background``, the max of the object's and the splats' coverage).
 ``--layers L.exr`` also writes one multi-layer EXR for a compositor (``render_layers``): beauty,
 asset, background, shadow, indirect, channels ``<layer>.R/G/B/A``, premultiplied linear. ``--passes N`` averages N renders
-whose pixels sample N points inside each pixel (app/pbgi/gbuffer.py: pass_jitter), so edges and
-mirror images are anti-aliased and the glossy lobes' jitter averages out; the radiance is then
+whose pixels sample N points inside each pixel, centred on it (app/pbgi/gbuffer.py:
+pass_jitter), so edges and mirror images are anti-aliased and the glossy lobes' jitter averages
+out; the radiance is then
 premultiplied by the covered fraction (alpha). ``--render-scale S`` relights the asset at S of
 the resolution and brings it back with the viewer's joint bilateral upsampling, guided by the
 asset's full-resolution G-buffer (app/pbgi/upsample.py); alpha stays the full-resolution
@@ -124,7 +125,7 @@ def run(args) -> int:
     from app.io.outputs import OutputSet, check_outputs
     from app.io.pointcloud import load_cloud
     from app.material import load_material
-    from app.pbgi.renderer import Relighter, RenderParams
+    from app.pbgi.renderer import Relighter, RenderParams, render_steps
     from app.pbgi.upsample import gi_scale_of, render_upsampled
 
     values = _check_args(args)
@@ -163,7 +164,7 @@ def run(args) -> int:
     passes = int(values["pbgi.passes"])
     scale = gi_scale_of(values, r.materials_for(materials))
     edge_samples = int(values["pbgi.edge_samples"])
-    samples = max(passes, edge_samples if scale >= 1 else passes)
+    steps = render_steps(passes, edge_samples if scale >= 1 else passes)
 
     def step(k, n, bar):
         bar.update()
@@ -171,7 +172,7 @@ def run(args) -> int:
             log.info("pass %d/%d", k, n)
 
     from app.commands.progress import progress, quiet_of
-    with progress(samples, "render", unit="pass", quiet=quiet_of(args)) as bar:
+    with progress(steps, "render", unit="pass", quiet=quiet_of(args)) as bar:
         res = render_upsampled(r, camera, materials, params, passes, scale,
                                edge_samples=edge_samples,
                                progress=lambda k, n: step(k, n, bar))

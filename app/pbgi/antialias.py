@@ -7,9 +7,9 @@ continuous piece. Both fail where coverage changes between the pixel and a neigh
 asset's outline) or the distance to the surface jumps (one part of the asset in front of
 another: the inner silhouettes of a non-convex asset). Against the path tracer (issue 18) the
 2% of object pixels on the outline carried almost half of a whole-object view's per-pixel
-error, so those pixels get ``edge_samples`` samples (the R2 jitter of gbuffer.pass_jitter, a
-box filter over the footprint) and their alpha becomes the covered fraction - true coverage;
-all others keep the passes they had.
+error, so those pixels get ``edge_samples`` samples (gbuffer.pass_jitter's points of that many
+passes, centred on the pixel: a box filter over the footprint) and their alpha becomes the
+covered fraction - true coverage; all others keep the passes they had.
 """
 
 from __future__ import annotations

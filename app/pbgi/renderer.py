@@ -359,11 +359,13 @@ class Relighter:
 
     def render(self, camera, materials=None, params: RenderParams | None = None,
                tile=None, pass_index: int = 0, pixels=None,
-               parts: bool = False, layer=None) -> RenderResult:
+               parts: bool = False, layer=None, passes: int | None = None) -> RenderResult:
         """Relight the asset seen by ``camera`` (``tile``: a part of the image).
-        ``pass_index`` moves each pixel's sample inside the pixel (gbuffer.pass_jitter; pass 0
-        is the centre) and re-jitters the lobe micro-buffers (app/pbgi/lobe.py): the mean of
-        several passes is anti-aliased and averages the lobes' noise (``render_passes``).
+        ``pass_index`` moves each pixel's sample inside the pixel and re-jitters the lobe
+        micro-buffers (app/pbgi/lobe.py): the mean of several passes is anti-aliased and
+        averages the lobes' noise (``render_passes``). ``passes``: how many passes are averaged
+        with this one (gbuffer.pass_jitter centres their samples on the pixel together); a pass
+        other than 0 must say it, pass 0 alone is the centre.
         ``parts``: also return each pixel's gather split by BRDF factor (``RenderResult.parts``,
         app/pbgi/gather_parts.py), which a later edit of base colour, metallic, specular, sheen
         or clearcoat amount recombines instead of gathering again (the viewer).
@@ -373,6 +375,8 @@ class Relighter:
         the tiles that share it (app/pbgi/farfield.py, "Layers"), so the tiles add up to one
         render of the layer and their edges show nowhere."""
         params = (params or RenderParams()).validated()
+        if passes is None and pass_index != 0:
+            raise ValueError(f"pass {pass_index} needs the number of passes it is averaged with")
         if self.hierarchy is None or self.mesh is None:
             raise ScanlightError(None, "render needs a cloud (set_cloud) and an asset (set_asset)")
         materials = self.materials_for(materials)
@@ -405,6 +409,7 @@ class Relighter:
         ctx = self.ctx
         from app.pbgi.gather import absent_features
         from app.pbgi.gbuffer import material_table, pass_jitter
+        jitter = pass_jitter(pass_index, passes or 1)
 
         # the asset's surfels in the tree: built (and bounced) once per asset, cloud and
         # materials, outside the frame's time (stats.ms_asset says what it took when it ran)
@@ -421,12 +426,12 @@ class Relighter:
         if layer is not None:              # one G-buffer for all the layer's tiles of a pass
             view = (self._cloud_version, self._asset_version, params, layer,
                     tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
-                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, pass_jitter(pass_index),
+                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, jitter,
                     scene_key)
             key = view + (material_table(materials).tobytes(),
                           tuple(id(mt.normal_texture) for mt in materials))
             if self._layer_gb is None or self._layer_gb["key"] != key:
-                lgb = self.gbuffer.render(camera, materials, layer, pass_jitter(pass_index))
+                lgb = self.gbuffer.render(camera, materials, layer, jitter)
                 lv = RECEIVER.view(lgb["receivers"])
                 # what Hybrid's blocks depend on: the view and the receivers' geometry, not
                 # their materials - the viewer recolours in the middle of a pass and goes on
@@ -434,7 +439,7 @@ class Relighter:
                     _fingerprint(lv["position"], lv["normal"]),)}
             gb = _tile_of(self._layer_gb["gb"], x0 - layer[0], y0 - layer[1], w, h)
         else:
-            gb = self.gbuffer.render(camera, materials, tile, pass_jitter(pass_index))
+            gb = self.gbuffer.render(camera, materials, tile, jitter)
         rec, rows = gb["receivers"], gb.get("rows")
         if pixels is not None:             # only these pixels' receivers (silhouette samples)
             rec = rec[np.asarray(pixels, bool).reshape(-1)[RECEIVER.view(rec)["pixel"]]]
@@ -502,7 +507,7 @@ class Relighter:
         cut_key = (self._cloud_version, self._asset_version, params.mode, m, tile,
                    params.omega_tr_factor, params.parallax_tolerance,
                    tuple(camera.position.tolist()), tuple(camera.look_at.tolist()),
-                   tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, pass_jitter(pass_index),
+                   tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, jitter,
                    tuple(id(mt.normal_texture) for mt in materials), scene_key,
                    None if pixels is None else hash(np.asarray(pixels, bool).tobytes()),
                    groups, layer)      # Hybrid's blocks are the layer's
@@ -574,39 +579,46 @@ class Relighter:
     def render_passes(self, camera, materials=None, params: RenderParams | None = None,
                       passes: int = 1, tile=None, progress=None,
                       edge_samples: int = 1) -> RenderResult:
-        """The mean of ``passes`` renders (pass_index 0 .. passes - 1): anti-aliased pixels
-        (alpha is the covered fraction and the radiance is premultiplied by it) and the lobe
-        buffers' noise averaged. ``edge_samples`` above ``passes``: the pixels a silhouette
-        crosses (app/pbgi/antialias.py) get that many samples in all, the further passes
-        gathering only their receivers. ``progress(done, total)`` after each pass. Stats: the
+        """The mean of ``passes`` renders (pass_index 0 .. passes - 1, their samples centred
+        together by gbuffer.pass_jitter): anti-aliased pixels (alpha is the covered fraction and the radiance
+        is premultiplied by it) and the lobe buffers' noise averaged. ``edge_samples`` above
+        ``passes``: the pixels a silhouette crosses (app/pbgi/antialias.py) are then rendered
+        ``edge_samples`` times more, gathering only their receivers, as that many passes -
+        exactly what ``passes=edge_samples`` gives them (pass_jitter centres a set of passes'
+        samples only all together, so the first passes' samples are not reused for them).
+        ``progress(done, render_steps(passes, edge_samples))`` after each render. Stats: the
         first pass's, with the times and flags of all."""
         from app.pbgi.antialias import silhouette_pixels
         passes = max(int(passes), 1)
-        total = max(passes, int(edge_samples))
-        acc, first, ms, completed = None, None, 0.0, True
-        edges, edge_acc = None, None
-        for k in range(total):
-            if k == passes:                # the passes are done: now the silhouettes only
-                edges = silhouette_pixels(acc[..., 3] / passes, self._last_depth(camera, tile))
-                edge_acc = acc.copy()
-                if not edges.any():
-                    break
+        samples = max(passes, int(edge_samples))
+        steps = render_steps(passes, samples)
+        acc, edge_acc, first, ms, completed, done = None, None, None, 0.0, True, 0
+        edges = None
+
+        def one(k, n, pixels):
+            nonlocal first, ms, completed, done
             res = self.render(camera, materials, params, tile=tile, pass_index=k,
-                              pixels=edges)
-            if edges is None:
-                acc = res.image.astype(np.float64) if acc is None else acc + res.image
-            else:
-                edge_acc += res.image
+                              pixels=pixels, passes=n)
             first = res.stats if first is None else first
             ms += res.stats.ms
             completed &= res.stats.completed
+            done += 1
             if progress is not None:
-                progress(k + 1, total)
+                progress(done, steps)
+            return res.image.astype(np.float64)
+
+        for k in range(passes):
+            img = one(k, passes, None)
+            acc = img if acc is None else acc + img
+        if samples > passes:              # the silhouettes only, as `samples` passes
+            edges = silhouette_pixels(acc[..., 3] / passes, self._last_depth(camera, tile))
+            if edges.any():
+                edge_acc = sum(one(k, samples, edges) for k in range(samples))
         image = acc / passes
         stats = replace(first, ms=ms, completed=completed, passes=passes)
-        if edges is not None:
-            image[edges] = edge_acc[edges] / total
-            stats.edge_pixels, stats.edge_samples = int(edges.sum()), total
+        if edge_acc is not None:
+            image[edges] = edge_acc[edges] / samples
+            stats.edge_pixels, stats.edge_samples = int(edges.sum()), samples
         return RenderResult(image.astype(np.float32), stats)
 
     def _last_depth(self, camera, tile=None) -> np.ndarray:
@@ -631,6 +643,13 @@ class Relighter:
                 obj.release()
         self.nodes_buf = self.node_tex = self._splat = self._env = self._lobe = None
         self._asset_scene = self._layer_gb = None
+
+
+def render_steps(passes: int, edge_samples: int = 1) -> int:
+    """The render calls of ``Relighter.render_passes`` (its progress total): the passes, then
+    the silhouettes' samples when they are more (fewer calls when no silhouette is found)."""
+    passes, samples = max(int(passes), 1), int(edge_samples)
+    return passes + (samples if samples > passes else 0)
 
 
 def _tile_of(gb: dict, ox: int, oy: int, w: int, h: int) -> dict:

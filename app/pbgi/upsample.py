@@ -225,8 +225,9 @@ def render_upsampled(relighter, camera, materials=None, params=None, passes: int
     t0 = time.perf_counter()
     # the full-resolution coverage is box-filtered with max(passes, edge_samples) samples
     # (G-buffers only: cheap); the radiance comes from the low-resolution render
-    gbs = [relighter.gbuffer.render(camera, mats, None, pass_jitter(k))
-           for k in range(max(int(passes), int(edge_samples), 1))]
+    total = max(int(passes), int(edge_samples), 1)
+    gbs = [relighter.gbuffer.render(camera, mats, None, pass_jitter(k, total))
+           for k in range(total)]
     guide, cover = guide_texels(gbs, camera, relighter.origin)
     if relighter.upsampler is None:
         relighter.upsampler = Upsampler(relighter.ctx)

@@ -832,16 +832,18 @@ class ViewerEngine:
     def _render_gi(self, camera: Camera, tile, pass_index: int = 0, layer=None):
         """A's tile: texels and the gather in parts (``_on_materials`` recombines them)."""
         return self._gather(self.relighter, self.session.settings, camera, tile, pass_index,
-                            layer, parts=True)
+                            layer, parts=True, passes=self.gi.passes)
 
     def _render_gi_b(self, camera: Camera, tile, pass_index: int = 0,
                      layer=None) -> np.ndarray:
         """B's layer: B's settings (app/ui/compare.py), B's renderer; its stats stay B's."""
         return self._gather(self.relighter_b, b_settings(self.session.settings), camera, tile,
-                            pass_index, layer, keep_stats=False)
+                            pass_index, layer, keep_stats=False, passes=self.gi_b.passes)
 
     def _gather(self, relighter, s, camera: Camera, tile, pass_index: int = 0, layer=None,
-                keep_stats: bool = True, parts: bool = False):
+                keep_stats: bool = True, parts: bool = False, passes: int = 1):
+        """One tile of a pass: ``passes``, the refinement's count, the passes whose samples
+        gbuffer.pass_jitter centres on each pixel (the preview and pass 0 are among them)."""
         params = RenderParams.from_settings(s)
         if (self._interacting and params.asset_occlusion and relighter is not None
                 and not relighter.asset_scene_ready(self.session.materials, params)):
@@ -849,6 +851,7 @@ class ViewerEngine:
         try:
             res = relighter.render(camera, self.session.materials, params, tile=tile,
                                    pass_index=pass_index, layer=layer,
+                                   passes=max(int(passes), pass_index + 1),
                                    **({"parts": True} if parts else {}))
         except Exception as exc:
             self.gi_failed = True

@@ -38,7 +38,9 @@ at least every budget or so, instead of after a run that overshot it several tim
 
 3. *Passes* (``pbgi.idle_passes``, only while nothing changes): once the layer is complete the
    tiles run again with pass index 1, 2, ... (app/pbgi/gbuffer.py: pass_jitter moves each
-   pixel's sample inside the pixel, app/pbgi/lobe.py rotates the glossy lobes' micro-buffers),
+   pixel's sample inside the pixel, the passes' samples centred on it together - the engine
+   tells the renderer how many passes there are; app/pbgi/lobe.py rotates the glossy lobes'
+   micro-buffers),
    and each texel shows the mean radiance of the passes that saw the asset there: edges and
    mirror images are anti-aliased and the lobes' noise averages out. The compositor's
    silhouette comes from its own full-resolution G-buffer, so the mean is kept unpremultiplied.

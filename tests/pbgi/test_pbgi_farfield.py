@@ -277,7 +277,7 @@ def test_passes_move_the_block_grid_and_average_the_block_steps_away(demo_religh
     finder = r.mode_for(p).cut
     images, offsets = [], []
     for k in range(4):
-        res = r.render(cam, [mat], p, pass_index=k)
+        res = r.render(cam, [mat], p, pass_index=k, passes=4)
         assert res.stats.completed
         images.append(res.image)
         offsets.append(finder.offset)

@@ -150,7 +150,8 @@ def test_hybrid_tiles_of_a_pass_add_up_to_one_render_of_the_layer(demo_relighter
         def render(camera, tile, p, layer):
             calls.append(layer)
             return demo_relighter.render(camera, [mat], params, tile=tile, pass_index=p,
-                                         layer=layer if share else None).image
+                                         layer=layer if share else None,
+                                         passes=passes).image
         gi = ProgressiveGI(render)
         gi.cell_size = lambda budget_ms: cell
         if interrupt:                       # a few tiles, then the same view again
@@ -163,7 +164,7 @@ def test_hybrid_tiles_of_a_pass_add_up_to_one_render_of_the_layer(demo_relighter
 
     def direct(passes: int) -> np.ndarray:
         """The mean of one render of the layer per pass, over the passes that hit."""
-        imgs = [demo_relighter.render(cam, [mat], params, pass_index=p).image
+        imgs = [demo_relighter.render(cam, [mat], params, pass_index=p, passes=passes).image
                 for p in range(passes)]
         hits = sum(im[..., 3] for im in imgs)
         out = np.zeros_like(imgs[0])

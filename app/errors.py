@@ -17,7 +17,18 @@ class ScanlightError(Exception):
     def __init__(self, path: str | Path | None, reason: str):
         self.path = None if path is None else str(path)
         self.reason = " ".join(str(reason).split())  # always one line
-        super().__init__(f"{self.path}: {self.reason}" if self.path else self.reason)
+        shown = None if self.path is None else printable(self.path)
+        super().__init__(f"{shown}: {self.reason}" if shown else self.reason)
+
+
+def printable(name: str) -> str:
+    """``name`` with control characters (a newline in a file name) and bytes that are not
+    UTF-8 (surrogate escapes) written as escapes, so the error stays one line."""
+    if name.isprintable():
+        return name
+    return "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace")
+                   .decode("ascii") if not 0xDC80 <= ord(c) <= 0xDCFF
+                   else f"\\x{ord(c) - 0xDC00:02x}" for c in name)
 
 
 class UsageError(ScanlightError):

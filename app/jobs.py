@@ -64,6 +64,12 @@ def _describe(exc: BaseException) -> tuple:
 
     if isinstance(exc, ScanlightError):
         return ("scanlight", type(exc).__name__, exc.path, exc.reason)
+    if isinstance(exc, OSError):         # the machine refused (a full disk, a limit): no bug
+        return ("scanlight", "ScanlightError", exc.filename and str(exc.filename),
+                exc.strerror or str(exc))
+    if isinstance(exc, MemoryError):
+        return ("scanlight", "ScanlightError", None,
+                f"out of memory ({exc or 'an allocation failed'})")
     text = " ".join(f"{type(exc).__name__}: {exc}".split())
     return ("internal", text, traceback.format_exc())
 

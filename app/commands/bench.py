@@ -43,6 +43,9 @@ def run(args) -> int:
     if getattr(args, "_missing", False):
         raise UsageError(None, f"benchmark {args.bench!r} is not available in this build")
     _check_numbers(args)
+    if args.json:      # a folder it cannot write into: say so now, not after the whole run
+        from app.io.outputs import check_outputs
+        check_outputs({}, {"--json": args.json})
     records = importlib.import_module(BENCHES[args.bench]).run(args)
     print(table(records))
     if args.json:

@@ -28,7 +28,7 @@ import numpy as np
 from app.color import srgb_to_linear
 from app.errors import ScanlightError
 from app.io.clean import HALF_MAX, clean_rgb, describe_counts
-from app.io.files import atomic_output, require_file
+from app.io.files import WriteError, atomic_output, require_file
 from app.io.limits import MAX_IMAGE_PIXELS
 
 log = logging.getLogger(__name__)
@@ -178,10 +178,31 @@ def _open_exr(p: Path):
 
 
 def _read_exr_parts(p: Path):
+    import contextlib
+
+    with contextlib.ExitStack() as stack:
+        return _read_exr_named(p, _library_path(p, stack))
+
+
+def _library_path(p: Path, stack) -> str:
+    """A name OpenEXR can open for ``p``: its own, or - when it holds bytes that are not UTF-8,
+    which the binding refuses ("pass a filesystem path as str") - the descriptor of the file
+    opened here (/proc/self/fd/N, Linux), closed when ``stack`` closes."""
+    name = str(p)
+    try:
+        name.encode("utf-8")
+        return name
+    except UnicodeEncodeError:
+        fd = os.open(p, os.O_RDONLY)
+        stack.callback(os.close, fd)
+        return f"/proc/self/fd/{fd}"
+
+
+def _read_exr_named(p: Path, name: str):
     import OpenEXR
 
     try:
-        with OpenEXR.File(str(p), header_only=True) as f:
+        with OpenEXR.File(name, header_only=True) as f:
             windows = [part.header["dataWindow"] for part in f.parts]
         # every part is decoded when the file is opened, so all of them count
         sizes = [(int(hi[0]) - int(lo[0]) + 1, int(hi[1]) - int(lo[1]) + 1) for lo, hi in windows]
@@ -191,7 +212,7 @@ def _read_exr_parts(p: Path):
             raise ScanlightError(p, f"EXR of {len(sizes)} parts holds "
                                     f"{sum(w * h for w, h in sizes):,} pixels, more than the "
                                     f"limit of {MAX_IMAGE_PIXELS:,}")
-        with OpenEXR.File(str(p), separate_channels=True) as f:
+        with OpenEXR.File(name, separate_channels=True) as f:
             if len(f.parts) == 0:
                 raise ValueError("file has no readable parts")
             # the pixel arrays, taken while the file is open (its channel dict empties on close)
@@ -268,7 +289,10 @@ def _write_channels(path, channels: dict, extra_header: dict | None = None) -> N
     header.update(extra_header or {})
     with atomic_output(path) as tmp:
         with OpenEXR.File(header, channels) as f:
-            f.write(str(tmp))
+            try:
+                f.write(str(tmp))
+            except RuntimeError as exc:     # "Failed to write pixel data ... No space left"
+                raise WriteError(str(exc).split(". ", 1)[-1] or str(exc)) from None
 
 
 def write_exr(path, image, half: bool = False) -> None:

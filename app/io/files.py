@@ -35,28 +35,59 @@ def require_file(path, kind: str, extensions: tuple[str, ...] | None = None) -> 
     return p
 
 
+def temp_beside(target: Path) -> Path:
+    """A new empty hidden file in ``target``'s folder to write ``target`` into, then rename:
+    a short ASCII name of its own (``.sl-XXXXXXXX`` plus the target's extension when that is
+    plain ASCII, which writers such as OpenEXR and Pillow choose the format from). Named after
+    the target, the temporaries of a long name (a set's temporary written through a writer's own
+    ``atomic_output``: two prefixes) passed the 255-byte limit where the target itself fit, and
+    OpenEXR cannot open a name holding bytes that are not UTF-8."""
+    suffix = target.suffix if target.suffix.isascii() and target.suffix.isprintable() else ""
+    fd, tmp = tempfile.mkstemp(prefix=".sl-", suffix=suffix[:16], dir=target.parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def write_failure(target, exc: BaseException) -> ScanlightError | None:
+    """The one line for ``target`` that could not be written because of ``exc`` - a full disk,
+    a file-size or open-files limit, a read-only mount, OpenEXR's own write error - or None
+    when ``exc`` is not such a failure (a bug, Ctrl-C: raised as it is)."""
+    if isinstance(exc, ScanlightError) or not isinstance(exc, (OSError, WriteError)):
+        return None
+    reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+    return ScanlightError(target, f"could not be written: {reason}")
+
+
+class WriteError(Exception):
+    """A writer library's failure to write its file (OpenEXR raises RuntimeError for a full
+    disk), told apart from a bug so that ``atomic_output`` reports it as one line."""
+
+
 @contextlib.contextmanager
 def atomic_output(path):
-    """Yield a temporary path beside ``path`` (same extension); rename it over ``path`` on success.
-
-    The temporary file keeps the target's extension because some writers (OpenEXR, Pillow) choose
-    the format from it.
-    """
+    """Yield a temporary path beside ``path`` (``temp_beside``); rename it over ``path`` on
+    success. A write that fails for want of room, a limit or permission is one ScanlightError
+    line naming ``path`` (``write_failure``); the temporary is removed either way."""
     p = Path(path)
     if p.exists() and not p.is_file():     # a folder, /dev/null, a pipe: never replace it
         raise ScanlightError(p, "is a folder or a special file, not a file to write")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
-    os.close(fd)
     try:
-        yield Path(tmp)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_beside(p)
+    except OSError as exc:
+        raise write_failure(p, exc) from None
+    try:
+        yield tmp
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; outputs are ordinary user files
         os.replace(tmp, p)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        failure = write_failure(p, exc)
+        if failure is not None:
+            raise failure from None
         raise
 
 

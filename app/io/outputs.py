@@ -104,13 +104,13 @@ class OutputSet:
 
     def temp(self, flag: str) -> Path:
         if flag not in self._temps:
-            import tempfile
+            from app.io.files import temp_beside, write_failure
             target = self.targets[flag]
-            target.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix,
-                                       dir=target.parent)
-            os.close(fd)
-            self._temps[flag] = Path(tmp)
+            try:
+                target.parent.mkdir(parents=True, exist_ok=True)
+                self._temps[flag] = temp_beside(target)
+            except OSError as exc:
+                raise write_failure(target, exc) from None
         return self._temps[flag]
 
     def __enter__(self) -> "OutputSet":
@@ -119,8 +119,16 @@ class OutputSet:
     def __exit__(self, kind, exc, tb) -> bool:
         if kind is None:
             self._commit()
-        else:
-            self._discard()
+            return False
+        targets = {str(t): self.targets[f] for f, t in self._temps.items()}
+        self._discard()
+        # a writer's failure names the temporary it wrote: say which output could not be
+        # written instead (a full disk, a limit: app/io/files.py write_failure)
+        if isinstance(exc, ScanlightError) and exc.path in targets:
+            raise ScanlightError(targets[exc.path], exc.reason) from None
+        if isinstance(exc, OSError) and str(exc.filename) in targets:
+            from app.io.files import write_failure
+            raise write_failure(targets[str(exc.filename)], exc) from None
         return False
 
     def discard(self) -> None:
@@ -157,13 +165,21 @@ class OutputSet:
                 fcntl.flock(fd, fcntl.LOCK_EX)
             if in_main:
                 signal.signal(signal.SIGINT, signal.SIG_IGN)  # the renames are one step
+            for flag in self._temps:          # a target that became a folder meanwhile:
+                target = self.targets[flag]   # refuse before the first rename, not after
+                if target.exists() and not target.is_file():
+                    raise ScanlightError(target, f"{flag} became a folder or a special file "
+                                                 "while the command ran; nothing written")
             for flag, tmp in self._temps.items():
                 os.chmod(tmp, 0o666 & ~umask)   # mkstemp makes 0600: outputs are user files
                 os.replace(tmp, self.targets[flag])
             COMMITTED.append(tuple(str(self.targets[f]) for f in self._temps))
             self._temps.clear()
-        except BaseException:
+        except BaseException as exc:
             self._discard()
+            if isinstance(exc, OSError):     # a rename refused: name its target
+                raise ScanlightError(exc.filename2 or exc.filename,
+                                     f"could not be written: {exc.strerror or exc}") from None
             raise
         finally:
             for fd in held:

@@ -180,10 +180,18 @@ class ViewerEngine:
         return None
 
     def report_failure(self, what: str, exc: Exception) -> None:
-        """One message for a failure: a ScanlightError says its reason, anything else is a
-        bug, logged with its traceback."""
+        """One message for a failure: a ScanlightError says its reason, so does the machine's
+        refusal (a full disk, a read-only folder, no memory left: OSError, MemoryError - the
+        environment, not a bug); anything else is a bug, logged with its traceback."""
         if isinstance(exc, ScanlightError):
             self.error(f"{what}: {exc}")
+        elif isinstance(exc, (OSError, MemoryError)):
+            from app.errors import printable
+            where = (f"{printable(str(exc.filename))}: "
+                     if isinstance(exc, OSError) and exc.filename else "")
+            reason = (exc.strerror if isinstance(exc, OSError) and exc.strerror
+                      else f"out of memory ({exc})" if isinstance(exc, MemoryError) else exc)
+            self.error(f"{what}: {where}{reason}")
         else:
             log.exception("%s failed", what)
             self.error(f"{what} failed: {type(exc).__name__}: {exc}")
@@ -899,19 +907,22 @@ class ViewerEngine:
         self._composite(cam)
 
     def screenshot(self, path) -> list[str]:
-        """PNG of the display image plus EXR of the linear composite beside it (same stem)."""
+        """PNG of the display image plus EXR of the linear composite beside it (same stem),
+        written together or not at all (a full disk left the PNG without its EXR)."""
         from pathlib import Path
 
         from app.io.exr import write_exr
         from app.io.images import write_png
+        from app.io.outputs import OutputSet
         self.finish_refinement()
         p = Path(path)
         if p.suffix.lower() != ".png":
             p = p.with_suffix(".png")
-        write_png(p, self.view.read_display())
-        lin = self.view.read_linear()[..., :3]
         exr = p.with_suffix(".exr")
-        write_exr(exr, np.nan_to_num(lin, nan=0.0, posinf=0.0, neginf=0.0))
+        lin = self.view.read_linear()[..., :3]
+        with OutputSet({"png": p, "exr": exr}) as outs:
+            write_png(outs.temp("png"), self.view.read_display())
+            write_exr(outs.temp("exr"), np.nan_to_num(lin, nan=0.0, posinf=0.0, neginf=0.0))
         return [str(p), str(exr)]
 
     def release(self) -> None:

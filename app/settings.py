@@ -387,11 +387,17 @@ def last_session_path() -> Path:
 
 
 def save_last_session(session: Session) -> Path:
-    """A copy of the session with absolute paths, for ``scanlight view --last``."""
+    """A copy of the session with absolute paths, for ``scanlight view --last``. A config
+    folder that cannot be written is a ScanlightError naming the file, never a bare OSError
+    (which the viewer would report as a bug)."""
     p = last_session_path()
     keep = session.path
-    session.save(p, relative=False)
-    session.path = keep
+    try:
+        session.save(p, relative=False)
+    except OSError as exc:
+        raise ScanlightError(p, f"could not be written: {exc.strerror or exc}") from None
+    finally:
+        session.path = keep
     return p
 
 

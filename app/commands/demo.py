@@ -39,11 +39,26 @@ def run(args) -> int:
     check_output_folder(out, "--out")
     tonemapper = param_values(args, "demo")["view.tonemap"]   # `view`'s args: the default
     t0 = time.perf_counter()
-    report = pipeline.run_demo(out, size=size, n_points=n_points, tonemapper=tonemapper)
-    report["seconds_total"] = round(time.perf_counter() - t0, 2)
-    write_json(out / "report.json", report)
+    created = not out.exists()
+    try:
+        report = pipeline.run_demo(out, size=size, n_points=n_points, tonemapper=tonemapper)
+        report["seconds_total"] = round(time.perf_counter() - t0, 2)
+        write_json(out / "report.json", report)
+    except BaseException:
+        if created:
+            _remove_if_empty(out)
+        raise
     print(f"demo done in {report['seconds_total']} s: images, contact_sheet.png and report.json "
           f"in {out}/ (PNGs tone-mapped with {report['tonemapper']})")
     for line in report.get("summary", []):
         print("  " + line)
     return 0
+
+
+def _remove_if_empty(folder: Path) -> None:
+    """A failed run (a full disk at the first file, Ctrl-C while the scene is generated) leaves
+    no empty ``--out`` folder of its own behind; one holding files keeps them."""
+    try:
+        folder.rmdir()
+    except OSError:
+        pass                # not empty (or already gone): leave it

@@ -58,7 +58,7 @@ VIDEO_NAME = "turntable.mp4"
 MAX_FRAMES = 100_000                     # ~70 minutes at 24 fps
 DEFAULT_SIZE = "640x480"
 DEFAULT_ELEVATION = 20.0                 # degrees: a little above, so the top shows
-VIDEO_QUALITY = 8                        # imageio-ffmpeg's 0..10 scale: libx264 CRF 10
+VIDEO_CRF = 10                           # libx264 quality (imageio-ffmpeg's quality 8)
 
 
 def add_arguments(parser) -> None:
@@ -349,45 +349,108 @@ def ctrl_c_after_block():
 
 def write_video(out_dir: Path, count: int, fps: float) -> Path:
     """``DIR/turntable.mp4`` from the ``count`` PNG frames: H.264, yuv420p, over black (the
-    PNGs' premultiplied colour without their alpha), an odd side padded by one edge pixel."""
-    import imageio_ffmpeg
-    from PIL import Image
-
+    PNGs' premultiplied colour without their alpha), an odd side padded by one edge pixel.
+    ffmpeg's exit status is checked and the written file re-read before it is committed: a full
+    disk or a file-size limit stops ffmpeg but leaves a truncated file behind, which must
+    never be renamed into place as the video."""
     from app.io.outputs import OutputSet
 
     target = out_dir / VIDEO_NAME
-    size = None
     with OutputSet({"video": target}) as outs:
-        writer = None
-        try:
-            for k in range(count):
-                png = frame_paths(out_dir, k)[1]
-                try:
-                    with Image.open(png) as im:
-                        rgb = np.asarray(im.convert("RGB"))
-                except OSError as err:
-                    raise ScanlightError(png, f"cannot read the frame for the video: {err}") \
-                        from None
-                if size is None:
-                    size = rgb.shape[1], rgb.shape[0]
-                    even = size[0] + size[0] % 2, size[1] + size[1] % 2
-                    if even != size:
-                        log.info("H.264 needs even sizes: the video's frames are padded from "
-                                 "%dx%d to %dx%d", *size, *even)
-                    writer = imageio_ffmpeg.write_frames(
-                        str(outs.temp("video")), even, fps=fps, codec="libx264",
-                        pix_fmt_in="rgb24", pix_fmt_out="yuv420p", quality=VIDEO_QUALITY,
-                        macro_block_size=1, output_params=["-movflags", "+faststart"])
-                    writer.send(None)
-                elif (rgb.shape[1], rgb.shape[0]) != size:
-                    raise ScanlightError(png, f"is {rgb.shape[1]}x{rgb.shape[0]}, frame 0 is "
-                                              f"{size[0]}x{size[1]}: a video needs one size")
-                pad = ((0, even[1] - size[1]), (0, even[0] - size[0]), (0, 0))
-                writer.send(np.ascontiguousarray(np.pad(rgb, pad, mode="edge")).tobytes())
-        finally:
-            if writer is not None:
-                writer.close()
+        tmp = outs.temp("video")
+        _encode(_video_frames(out_dir, count), tmp, fps, target)
+        _check_video(tmp, count, target)
     return target
+
+
+def _video_frames(out_dir: Path, count: int):
+    """The PNG frames as RGB arrays of one even size (an odd side padded by its edge pixel)."""
+    from PIL import Image
+
+    size = None
+    for k in range(count):
+        png = frame_paths(out_dir, k)[1]
+        try:
+            with Image.open(png) as im:
+                rgb = np.asarray(im.convert("RGB"))
+        except OSError as err:
+            raise ScanlightError(png, f"cannot read the frame for the video: {err}") from None
+        if size is None:
+            size = rgb.shape[1], rgb.shape[0]
+            even = size[0] + size[0] % 2, size[1] + size[1] % 2
+            if even != size:
+                log.info("H.264 needs even sizes: the video's frames are padded from %dx%d to "
+                         "%dx%d", *size, *even)
+        elif (rgb.shape[1], rgb.shape[0]) != size:
+            raise ScanlightError(png, f"is {rgb.shape[1]}x{rgb.shape[0]}, frame 0 is "
+                                      f"{size[0]}x{size[1]}: a video needs one size")
+        yield np.pad(rgb, ((0, even[1] - size[1]), (0, even[0] - size[0]), (0, 0)), mode="edge")
+
+
+def _encode(frames, tmp: Path, fps: float, target: Path) -> None:
+    """Pipe ``frames`` through ffmpeg into ``tmp``. ffmpeg runs itself (not imageio-ffmpeg's
+    writer, which neither checks its exit status nor keeps its messages off stderr) so that a
+    failure is one error naming ``target`` with ffmpeg's reason."""
+    import itertools
+    import subprocess
+    import tempfile
+    from fractions import Fraction
+
+    import imageio_ffmpeg
+
+    first = next(frames)
+    h, w = first.shape[:2]
+    cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-y", "-v", "error",
+           "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
+           "-r", str(Fraction(fps).limit_denominator()), "-i", "-", "-an",
+           "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(VIDEO_CRF),
+           "-movflags", "+faststart", str(tmp)]
+    with tempfile.TemporaryFile() as messages:
+        # its own session: Ctrl-C reaches Python only, which then stops ffmpeg itself
+        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                stderr=messages, start_new_session=True)
+        try:
+            try:
+                with proc.stdin as pipe:
+                    for rgb in itertools.chain([first], frames):
+                        pipe.write(np.ascontiguousarray(rgb).tobytes())
+            except BrokenPipeError:
+                pass            # ffmpeg stopped early: its exit status and messages say why
+            status = proc.wait()
+        except BaseException:   # a frame that cannot be read, Ctrl-C: no video
+            proc.kill()
+            proc.wait()
+            raise
+        if status != 0:
+            messages.seek(0)
+            raise ScanlightError(target, "could not be written: "
+                                         + _ffmpeg_failure(status, messages.read()))
+
+
+def _ffmpeg_failure(status: int, messages: bytes) -> str:
+    """One line for ffmpeg's failure: the signal that stopped it, or its last message without
+    the ``[out#0/mp4 @ 0x...]`` prefix."""
+    if status < 0:
+        if status == -getattr(signal, "SIGXFSZ", 0):
+            return "file too large (ffmpeg was stopped by the file-size limit)"
+        return f"ffmpeg was killed by signal {-status}"
+    lines = [ln.strip() for ln in messages.decode(errors="replace").splitlines() if ln.strip()]
+    if not lines:
+        return f"ffmpeg failed (exit status {status})"
+    return "ffmpeg: " + re.sub(r"^\[[^]]*\]\s*", "", lines[-1])[:200]
+
+
+def _check_video(tmp: Path, count: int, target: Path) -> None:
+    """The written video must hold every frame: ffmpeg can exit 0 and still leave a video whose
+    end is missing (a partial file is read without an error)."""
+    import imageio_ffmpeg
+    try:
+        found = imageio_ffmpeg.count_frames_and_secs(str(tmp))[0]
+    except (RuntimeError, OSError) as err:
+        reason = str(err).strip().splitlines()[-1] if str(err).strip() else type(err).__name__
+        raise ScanlightError(target, f"is not a playable video: {reason[:200]}") from None
+    if found != count:
+        raise ScanlightError(target, f"came out with {found} of its {count} frames")
 
 
 __all__ = ["add_arguments", "run", "orbit_cameras", "framing_distance", "bounding_sphere",

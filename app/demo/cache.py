@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 from pathlib import Path
@@ -22,22 +23,38 @@ def cache_dir() -> Path:
 
 
 def load_demo(n_points: int = 200_000, seed: int = 0) -> room.DemoScene:
-    """The demo scene, from the cache when present (a corrupt cache entry is regenerated)."""
+    """The demo scene, from the cache when present (a corrupt cache entry is regenerated). The
+    cache only saves time: one that cannot be read or written is skipped with a warning."""
     path = cache_dir() / f"demo-v{DEMO_VERSION}-{n_points}-{seed}.npz"
-    if path.is_file():
-        try:
-            with np.load(path) as z:
-                return _from_arrays(z)
-        except Exception as exc:  # truncated or stale: rebuild
-            log.warning("%s: unreadable demo cache (%s); regenerating", path, exc)
+    try:
+        with np.load(path) as z:
+            return _from_arrays(z)
+    except (FileNotFoundError, NotADirectoryError):
+        pass                        # not cached yet
+    except Exception as exc:        # truncated, stale or unreadable: rebuild
+        log.warning("%s: unreadable demo cache (%s); regenerating", path, exc)
     log.info("generating the demo scene (%d points, seed %d)...", n_points, seed)
     scene = room.build_demo(n_points, seed)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
-    np.savez(tmp, positions=scene.gt.positions, normals=scene.gt.normals, gt=scene.gt.colors,
-             ldr=scene.ldr.colors, alpha=scene.alpha, photo=scene.photo)
-    tmp.replace(path)
+    _store(path, positions=scene.gt.positions, normals=scene.gt.normals, gt=scene.gt.colors,
+           ldr=scene.ldr.colors, alpha=scene.alpha, photo=scene.photo)
     return scene
+
+
+def _store(path: Path, **arrays) -> None:
+    """Write a cache file beside, then rename: never half a file. A cache folder that cannot
+    be written (read-only, a file, a full disk) is skipped with a warning - the work is done
+    anyway, so a cache must never fail it - and no temporary is left behind."""
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp.npz")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(tmp, **arrays)
+        tmp.replace(path)
+    except OSError as exc:
+        log.warning("%s: cannot write the cache (%s); continuing without it", path,
+                    exc.strerror or exc)
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)     # after a failure; after the rename it is gone
 
 
 def _from_arrays(z) -> room.DemoScene:
@@ -79,8 +96,6 @@ def load_demo_expansion(request):
 
     from app.hdr.result import PROVENANCE_ATTR, SCORE_ATTR, Expansion
     path = _expansion_path(request)
-    if not path.is_file():
-        return None
     try:
         with np.load(path) as z:
             if "scores" not in z.files:
@@ -88,7 +103,9 @@ def load_demo_expansion(request):
                 return None
             colors, labels, scores = z["colors"], z["labels"], z["scores"]
             report = json.loads(str(z["report"]))
-    except Exception as exc:  # truncated or stale: recompute
+    except (FileNotFoundError, NotADirectoryError):
+        return None                 # not computed yet
+    except Exception as exc:        # truncated, stale or unreadable: recompute
         log.warning("%s: unreadable demo expansion cache (%s); recomputing", path, exc)
         return None
     ldr = request.cloud
@@ -102,17 +119,13 @@ def load_demo_expansion(request):
 
 
 def store_demo_expansion(request, result) -> None:
-    """Keep ``result`` for the next start (written beside, then renamed: never half a file)."""
+    """Keep ``result`` for the next start (``_store``: never half a file, never fatal)."""
     import json
 
     from app.io.files import jsonable
-    path = _expansion_path(request)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
     n = len(result.cloud)
     scores = (np.full(n, np.nan, np.float32) if result.scores is None
               else np.asarray(result.scores, np.float32))
-    np.savez(tmp, colors=np.asarray(result.cloud.colors, np.float32),
-             labels=np.asarray(result.labels), scores=scores,
-             report=json.dumps(jsonable(result.report)))
-    tmp.replace(path)
+    _store(_expansion_path(request), colors=np.asarray(result.cloud.colors, np.float32),
+           labels=np.asarray(result.labels), scores=scores,
+           report=json.dumps(jsonable(result.report)))

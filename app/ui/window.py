@@ -456,5 +456,12 @@ class ViewerWindow:
         return 0
 
     def _save_last(self) -> None:
+        """Keep the session for ``view --last``. A config folder that cannot be written
+        (read-only, a file) is one warning naming the file, as the autosave's failure: no bug,
+        and the window is closing, so a message only in it would never be seen."""
         self.session.camera = self.engine.camera()
-        save_last_session(self.session)
+        try:
+            save_last_session(self.session)
+        except ScanlightError as exc:
+            log.warning("the last session was not saved: %s", exc)
+            self.engine.error(f"the last session was not saved: {exc}", "warning")

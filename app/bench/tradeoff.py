@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from app.bench.records import record
-from app.errors import UsageError
+from app.errors import ScanlightError, UsageError
 
 log = logging.getLogger(__name__)
 
@@ -208,6 +208,7 @@ def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory
 
     from app.bench import mitsuba_scene as ms
     from app.io.exr import read_exr, write_exr
+    from app.io.files import write_json
     stem = f"{room}_{kind}_{camera.width}x{camera.height}_spp{spp}"
     if max_depth != MAX_DEPTH:
         stem += f"_depth{max_depth}"
@@ -230,15 +231,15 @@ def reference(room: str, kind: str, rl, cloud, mesh, camera, spp: int, directory
     mask = im.erode(cover, MASK_ERODE)
     noise = ref.noise_floor(mask, 1)
     noise4 = ref.noise_floor(mask, 4)
-    directory.mkdir(parents=True, exist_ok=True)
     rgba = np.concatenate([ref.image, cover[..., None].astype(np.float32)], axis=-1)
-    tmp = exr.with_suffix(".tmp.exr")
-    write_exr(tmp, rgba)
-    tmp.replace(exr)
-    tmpj = meta.with_suffix(".tmp")
-    tmpj.write_text(json.dumps({"noise": noise, "noise_4x4": noise4, "seconds": ref.seconds,
-                                "spp": spp, "max_depth": max_depth}))
-    tmpj.replace(meta)
+    try:            # a cache only saves the next run's time: one that cannot be written is no error
+        directory.mkdir(parents=True, exist_ok=True)
+        write_exr(exr, rgba)
+        write_json(meta, {"noise": noise, "noise_4x4": noise4, "seconds": ref.seconds,
+                          "spp": spp, "max_depth": max_depth})
+    except (OSError, ScanlightError) as err:
+        log.warning("%s: cannot keep the reference (%s); it is rendered again next time",
+                    directory, err)
     return Ref(ref.image, noise, noise4, ref.seconds, spp)
 
 
@@ -384,13 +385,12 @@ CSV_FIELDS = ("room", "material", "setting", "mode", "microbuffer", "scale", "ro
 
 def write_csv(records: list[dict], path) -> None:
     import csv
-    tmp = Path(str(path) + ".tmp")
-    with open(tmp, "w", newline="") as f:
+    from app.io.files import atomic_output
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
         w.writeheader()
         for r in records:
             w.writerow({k: r.get(k) for k in CSV_FIELDS})
-    tmp.replace(path)
 
 
 MODE_COLOURS = {"classic": "tab:blue", "mipmapped": "tab:green", "hybrid": "tab:orange",
@@ -440,10 +440,10 @@ def write_plot(records: list[dict], path, metric: str = "rel_rmse_4x4") -> None:
                 ax.set_ylabel("rel. RMSE 4x4 (%)", fontsize=8)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
-    tmp = Path(str(path) + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
+    from app.io.files import atomic_output
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
-    tmp.replace(path)
 
 
 # -- the command ------------------------------------------------------------------------------

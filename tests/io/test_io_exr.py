@@ -115,7 +115,8 @@ def test_write_is_atomic(tmp_path, monkeypatch):
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(OpenEXR.File, "write", boom)
-    with pytest.raises(RuntimeError):
+    # the library's write error is one line naming the target (app/io/files.py write_failure)
+    with pytest.raises(ScanlightError, match="keep.exr: could not be written: disk full"):
         write_exr(target, np.zeros((2, 2, 3), np.float32))
     assert target.read_bytes() == before
     assert os.listdir(tmp_path) == ["keep.exr"]  # no temporary left behind

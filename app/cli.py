@@ -79,14 +79,9 @@ def main(argv: list[str] | None = None) -> int:
             done = "; nothing written" if command in ("render", "expand", "evaluate") else ""
         print(f"scanlight {command}: interrupted{done}", file=sys.stderr)
         return 143 if isinstance(stop, Terminated) else 130
-    except MemoryError as exc:   # the input is too large for this process's memory: no bug
-        print(f"scanlight {command}: error: out of memory ({exc or 'an allocation failed'}); "
-              "the input is too large for the memory this process may use", file=sys.stderr)
-        return 3
-    except OSError as exc:       # the machine refused: a full disk, a limit, a name too long
-        from app.errors import printable
-        where = f"{printable(str(exc.filename))}: " if exc.filename else ""
-        print(f"scanlight {command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+    except (MemoryError, OSError) as exc:   # the machine refused (app/errors.py: refusal)
+        from app.errors import refusal
+        print(f"scanlight {command}: error: {refusal(exc)}", file=sys.stderr)
         return 3
     except Exception as exc:  # a bug, not bad input: one line, traceback with -v
         if args.verbose:

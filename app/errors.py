@@ -26,12 +26,32 @@ def printable(name: str) -> str:
     UTF-8 (surrogate escapes) written as escapes, so the error stays one line."""
     if name.isprintable():
         return name
-    return "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace")
-                   .decode("ascii") if not 0xDC80 <= ord(c) <= 0xDCFF
-                   else f"\\x{ord(c) - 0xDC00:02x}" for c in name)
+    out = []
+    for c in name:
+        if c.isprintable():
+            out.append(c)
+        elif 0xDC80 <= ord(c) <= 0xDCFF:         # a byte that is not UTF-8, as Python keeps it
+            out.append(f"\\x{ord(c) - 0xDC00:02x}")
+        else:
+            out.append(c.encode("unicode_escape").decode("ascii"))
+    return "".join(out)
 
 
 class UsageError(ScanlightError):
     """Wrong command-line arguments (exit 2)."""
 
     exit_code = 2
+
+
+def refusal(exc: BaseException) -> str | None:
+    """The one line for the machine refusing what a command asked of it - a full disk, a
+    file-size or open-files limit, a read-only folder (OSError), no memory left (MemoryError):
+    the environment, not a bug - or None when ``exc`` is something else."""
+    if isinstance(exc, MemoryError):
+        return (f"out of memory ({str(exc) or 'an allocation failed'}): the input is too large "
+                "for the memory this process may use")
+    if isinstance(exc, OSError):
+        where = f"{printable(str(exc.filename))}: " if exc.filename else ""
+        return f"{where}{exc.strerror or exc}"
+    return None
+

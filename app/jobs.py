@@ -64,12 +64,9 @@ def _describe(exc: BaseException) -> tuple:
 
     if isinstance(exc, ScanlightError):
         return ("scanlight", type(exc).__name__, exc.path, exc.reason)
-    if isinstance(exc, OSError):         # the machine refused (a full disk, a limit): no bug
-        return ("scanlight", "ScanlightError", exc.filename and str(exc.filename),
-                exc.strerror or str(exc))
-    if isinstance(exc, MemoryError):
-        return ("scanlight", "ScanlightError", None,
-                f"out of memory ({exc or 'an allocation failed'})")
+    if isinstance(exc, (OSError, MemoryError)):     # the machine refused: no bug
+        from app.errors import refusal
+        return ("scanlight", "ScanlightError", None, refusal(exc))
     text = " ".join(f"{type(exc).__name__}: {exc}".split())
     return ("internal", text, traceback.format_exc())
 

@@ -183,15 +183,11 @@ class ViewerEngine:
         """One message for a failure: a ScanlightError says its reason, so does the machine's
         refusal (a full disk, a read-only folder, no memory left: OSError, MemoryError - the
         environment, not a bug); anything else is a bug, logged with its traceback."""
+        from app.errors import refusal
         if isinstance(exc, ScanlightError):
             self.error(f"{what}: {exc}")
-        elif isinstance(exc, (OSError, MemoryError)):
-            from app.errors import printable
-            where = (f"{printable(str(exc.filename))}: "
-                     if isinstance(exc, OSError) and exc.filename else "")
-            reason = (exc.strerror if isinstance(exc, OSError) and exc.strerror
-                      else f"out of memory ({exc})" if isinstance(exc, MemoryError) else exc)
-            self.error(f"{what}: {where}{reason}")
+        elif refusal(exc) is not None:
+            self.error(f"{what}: {refusal(exc)}")
         else:
             log.exception("%s failed", what)
             self.error(f"{what} failed: {type(exc).__name__}: {exc}")

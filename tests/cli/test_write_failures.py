@@ -155,3 +155,14 @@ def test_the_viewer_reports_what_the_machine_refuses_in_one_line(ctx, tmp_path, 
     text = e.messages[-1].text
     assert text.startswith("saving the last session: ") and "config/last.json" in text
     assert "\n" not in text and not any(r.exc_info for r in caplog.records)
+
+
+def test_the_machine_s_refusals_read_as_one_line():
+    """What cli, the job runner and the viewer print for an OSError or a MemoryError: the file
+    (escaped) and the system's reason; an empty MemoryError (numpy's in the viewer gave
+    "out of memory ()") still says what happened; anything else is not a refusal."""
+    from app.errors import refusal
+    assert refusal(OSError(28, "No space left on device", "/out/a\nb.exr")) == \
+        "/out/a\\nb.exr: No space left on device"
+    assert refusal(MemoryError()).startswith("out of memory (an allocation failed)")
+    assert refusal(ValueError("x")) is None

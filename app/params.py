@@ -315,7 +315,8 @@ PARAMS: tuple[Param, ...] = (
        "'Speed against accuracy'); 1 = only fully rough materials.", 0.0, 1.0, "",
        label="rough GI scale from", redo="gi", ui=False),
     _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "
-       "with joint bilateral weights (depth and normal), as `render --render-scale`.", 0.0625, 1.0, "x", redo="gi"),
+       "with joint bilateral weights (depth and normal), as `render --render-scale`.",
+       0.0625, 1.0, "x", redo="gi"),
     _f("pbgi.stop_factor", 4.0, "A node is accepted into a receiver's micro-buffer once its solid "
        "angle is at most this times a micro-pixel's (Section 5.3 of the paper: 4); 1 refines "
        "further (sharper near field, slower). Classic, Mipmapped and Hybrid.", 1.0, 16.0, "x",

@@ -41,9 +41,14 @@ def temp_beside(target: Path) -> Path:
     plain ASCII, which writers such as OpenEXR and Pillow choose the format from). Named after
     the target, the temporaries of a long name (a set's temporary written through a writer's own
     ``atomic_output``: two prefixes) passed the 255-byte limit where the target itself fit, and
-    OpenEXR cannot open a name holding bytes that are not UTF-8."""
+    OpenEXR cannot open a name holding bytes that are not UTF-8. Missing folders are made; a
+    folder that cannot be is one ScanlightError line naming ``target`` (``write_failure``)."""
     suffix = target.suffix if target.suffix.isascii() and target.suffix.isprintable() else ""
-    fd, tmp = tempfile.mkstemp(prefix=".sl-", suffix=suffix[:16], dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".sl-", suffix=suffix[:16], dir=target.parent)
+    except OSError as exc:
+        raise write_failure(target, exc) from None
     os.close(fd)
     return Path(tmp)
 
@@ -71,11 +76,7 @@ def atomic_output(path):
     p = Path(path)
     if p.exists() and not p.is_file():     # a folder, /dev/null, a pipe: never replace it
         raise ScanlightError(p, "is a folder or a special file, not a file to write")
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = temp_beside(p)
-    except OSError as exc:
-        raise write_failure(p, exc) from None
+    tmp = temp_beside(p)
     try:
         yield tmp
         umask = os.umask(0)

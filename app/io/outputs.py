@@ -104,13 +104,8 @@ class OutputSet:
 
     def temp(self, flag: str) -> Path:
         if flag not in self._temps:
-            from app.io.files import temp_beside, write_failure
-            target = self.targets[flag]
-            try:
-                target.parent.mkdir(parents=True, exist_ok=True)
-                self._temps[flag] = temp_beside(target)
-            except OSError as exc:
-                raise write_failure(target, exc) from None
+            from app.io.files import temp_beside
+            self._temps[flag] = temp_beside(self.targets[flag])
         return self._temps[flag]
 
     def __enter__(self) -> "OutputSet":

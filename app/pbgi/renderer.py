@@ -580,8 +580,8 @@ class Relighter:
                       passes: int = 1, tile=None, progress=None,
                       edge_samples: int = 1) -> RenderResult:
         """The mean of ``passes`` renders (pass_index 0 .. passes - 1, their samples centred
-        together by gbuffer.pass_jitter): anti-aliased pixels (alpha is the covered fraction and the radiance
-        is premultiplied by it) and the lobe buffers' noise averaged. ``edge_samples`` above
+        together by gbuffer.pass_jitter): anti-aliased pixels (alpha is the covered fraction
+        and the radiance is premultiplied by it) and the lobe buffers' noise averaged. ``edge_samples`` above
         ``passes``: the pixels a silhouette crosses (app/pbgi/antialias.py) are then rendered
         ``edge_samples`` times more, gathering only their receivers, as that many passes -
         exactly what ``passes=edge_samples`` gives them (pass_jitter centres a set of passes'

@@ -50,14 +50,33 @@ uniform uint u_node_count;      // BSH_END
 uniform vec3 u_camera;          // camera position relative to the hierarchy origin
 uniform float u_leaf_radius;    // a leaf is a disc of at least this radius (the scan's surface)
 
-// Every micro-pixel's ray and solid angle (lobe_cell: two hashes and the warp's trigonometry)
-// once per receiver and dispatch, not once per node that covers it: a micro-pixel is ray cast
-// against ~10-30 accepted nodes. LOBE_CELLS = rings x sectors: app/pbgi/lobe.py compiles one
-// program per size (the default here only lets the file build on its own).
+// LOBE_RAY_TABLE 1: every micro-pixel's ray and solid angle (lobe_cell: two hashes and the
+// warp's trigonometry) once per receiver and dispatch, not once per node that covers it: a
+// micro-pixel is ray cast against ~10-30 accepted nodes. A CPU rasteriser keeps that table in the
+// invocation's stack; on a GPU it is local memory, dearer than the trigonometry it saves, and
+// LOBE_RAY_TABLE 0 computes each ray where it is cast (app/pbgi/lobe.py: LobeWalkTuning).
+// LOBE_CELLS = rings x sectors: app/pbgi/lobe.py compiles one program per size (the defaults
+// here only let the file build on its own).
 #ifndef LOBE_CELLS
 #define LOBE_CELLS 64
 #endif
+#ifndef LOBE_RAY_TABLE
+#define LOBE_RAY_TABLE 1
+#endif
+#if LOBE_RAY_TABLE
 vec4 lobe_rays[LOBE_CELLS];
+#endif
+
+vec4 lobe_ray(LobeFrame F, uint cell) {
+#if LOBE_RAY_TABLE
+    return lobe_rays[cell];
+#else
+    vec3 L;
+    float omega;
+    lobe_cell(F, cell, L, omega);
+    return vec4(L, omega);
+#endif
+}
 
 void lobe_write(uint receiver, uint k, uint key, uint node) {
     ivec2 c = ivec2(int(k), int(receiver));
@@ -85,6 +104,7 @@ void main() {
     LobeFrame F = lobe_frame_for(Q, terms, lobe_seed_pixel(receiver_pixel(rid)), u_pass, size.x,
                                   size.y);
     LobeCone K = lobe_cone(F);
+#if LOBE_RAY_TABLE
     uint cells_used = size.x * size.y;
     for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {
         if (c == cells_used) break;
@@ -93,6 +113,7 @@ void main() {
         lobe_cell(F, c, L, omega);
         lobe_rays[c] = vec4(L, omega);
     }
+#endif
 
     uint count = 0u, cost = 0u, steps = 0u;
     while (node < end && steps < u_steps) {
@@ -178,7 +199,7 @@ void main() {
         }
         uint cell = cur.cell;
         lobe_cursor_next(F, cur, rect);
-        vec4 ray = lobe_rays[cell];
+        vec4 ray = lobe_ray(F, cell);
         if (ray.w > 0.0) {
             uint key = mb_hit_key(nd, ray.xyz);
             if (key != MB_EMPTY) lobe_write(i, cell, key, nd.index);

@@ -60,6 +60,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--repeat", type=int, default=3,
                         help="renders per cell; the fastest counts (default 3)")
     parser.add_argument("--points", type=int, default=200_000, help="points of the demo room")
+    from app.pbgi.lobe import LOBE_TUNINGS
+    parser.add_argument("--lobe-tuning", choices=("auto", *LOBE_TUNINGS), default="auto",
+                        help="the lobe walk's private-memory tuning (app/pbgi/lobe.py: "
+                             "LobeWalkTuning): auto = the GL renderer's own (default)")
     add_param_options(parser, "bench profile")     # --microbuffer: the table's
 
 
@@ -86,9 +90,12 @@ def run(args) -> list[dict]:
     from app.bench.table3 import setup
     from app.demo.room import default_views
     from app.material import Material
+    from app.pbgi.lobe import LOBE_TUNINGS, tuning_name
     from app.pbgi.renderer import RenderParams
     args.microbuffer = int(param_values(args, "bench profile")["pbgi.microbuffer"])
     r = setup(args.points)
+    if args.lobe_tuning != "auto":
+        r.lobe_tuning = LOBE_TUNINGS[args.lobe_tuning]
     cam = default_views(args.viewport, args.viewport)[args.view]
     warm = default_views(16, 16)[args.view]
     mats = {name: Material(**kw) for name, kw in MATERIALS.items() if name in args.materials}
@@ -105,8 +112,10 @@ def run(args) -> list[dict]:
                 key = (mode, name)
                 if key not in best or st.ms < best[key].ms:
                     best[key] = st
+    tuning = tuning_name(r.lobe_tuning)
     records = [record("profile", {"mode": mode, "material": name, "viewport": args.viewport,
-                                  "microbuffer": args.microbuffer, "view": args.view},
+                                  "microbuffer": args.microbuffer, "view": args.view,
+                                  "lobe_tuning": tuning},
                       parts(best[(mode, name)]))
                for name in mats for mode in args.modes]
     print(markdown(records))

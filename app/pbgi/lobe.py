@@ -37,7 +37,43 @@ import numpy as np
 
 from app.pbgi.gpu_layout import (CLASSIC_STATE, IMAGE, LOOP_LIMIT, MB_ENTRY, SSBO,
                                  WALK_CUT_SHORT, dispatch_groups)
+from app.render.context import is_software_renderer
 from app.render.programs import load_compute
+
+
+@dataclass(frozen=True)
+class LobeWalkTuning:
+    """The lobe walk's private memory per invocation, which costs opposite ways on a CPU
+    rasteriser and on a GPU (measured: README, "The lobe walk on a GPU").
+
+    ``ray_table``: every micro-pixel's ray and solid angle computed once per receiver and
+    dispatch into a table (LOBE_CELLS vec4s), or again for each accepted node that covers it.
+    ``list_cap``: accepted nodes a dispatch collects before it ray casts them (two uint arrays
+    of that length), so also how many dispatches a receiver's walk takes.
+
+    On llvmpipe the table saves the warp's trigonometry - a micro-pixel is ray cast against
+    ~10-30 nodes - and the arrays live in the invocation's own stack, so it keeps both. On a GPU
+    both are per-thread local memory, spilled to the caches and DRAM for thousands of threads at
+    once, and they cost more than the trigonometry and the extra dispatches they save: a GPU
+    computes each ray where it is cast and keeps a shorter list (the sizes measured in the
+    README)."""
+    list_cap: int
+    ray_table: bool
+
+
+SOFTWARE_TUNING = LobeWalkTuning(list_cap=256, ray_table=True)
+GPU_TUNING = LobeWalkTuning(list_cap=128, ray_table=False)
+LOBE_TUNINGS = {"software": SOFTWARE_TUNING, "gpu": GPU_TUNING}   # by name (bench profile)
+
+
+def tuning_name(tuning: LobeWalkTuning) -> str:
+    return next((k for k, v in LOBE_TUNINGS.items() if v == tuning), str(tuning))
+
+
+def lobe_walk_tuning(renderer: str) -> LobeWalkTuning:
+    """The tuning for a GL_RENDERER string: llvmpipe and the other CPU rasterisers keep the
+    table, any other renderer is taken for a GPU."""
+    return SOFTWARE_TUNING if is_software_renderer(renderer) else GPU_TUNING
 
 
 @dataclass(frozen=True)
@@ -153,8 +189,10 @@ class LobeBuffers:
     """The lobe micro-buffers of one batch (an RG32UI image, one row per receiver) and the walk
     that fills them (shaders/pbgi_lobe.glsl)."""
 
-    def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768, list_cap: int = 256,
-                 max_rounds: int = 100000):
+    def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768,
+                 tuning: LobeWalkTuning | None = None, max_rounds: int = 100000):
+        self.tuning = tuning or lobe_walk_tuning(ctx.info.get("GL_RENDERER", ""))
+        list_cap = self.tuning.list_cap
         if steps + splat_budget + list_cap >= LOOP_LIMIT:
             raise ValueError("steps + splat_budget must stay below llvmpipe's loop limit")
         self.ctx = ctx
@@ -203,7 +241,8 @@ class LobeBuffers:
         if key not in self._progs:
             if self.steps + self.splat_budget + self.list_cap + cells >= LOOP_LIMIT:
                 raise ValueError("the lobe walk's loops would pass llvmpipe's loop limit")
-            defines = {"LIST_CAP": self.list_cap, "LOBE_CELLS": int(cells)}
+            defines = {"LIST_CAP": self.list_cap, "LOBE_CELLS": int(cells),
+                       "LOBE_RAY_TABLE": int(self.tuning.ray_table)}
             defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in absent})
             self._progs[key] = load_compute(self.ctx, "pbgi_lobe.glsl", defines=defines)
         return self._progs[key]

@@ -40,8 +40,8 @@ from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact s
 from app.pbgi.gpu_layout import GATHER_OUTPUT, GATHER_PARTS, RECEIVER
 from app.pbgi.hierarchy import recolor
 from app.pbgi.microbuffer import MIN_SIZE, MicroBuffers, entries
-from app.pbgi.lobe import (LobeBuffers, LobeSettings, lobe_only_receivers, needs_lobe,
-                           surface_radius)
+from app.pbgi.lobe import (LobeBuffers, LobeSettings, lobe_only_receivers, lobe_walk_tuning,
+                           needs_lobe, surface_radius)
 from app.pbgi.modebase import Frame, HeldCut, Layer, RenderMode, RenderParams
 from app.pbgi.modes import create_mode
 from app.pbgi.nodetex import NodeTextures
@@ -97,6 +97,7 @@ class Relighter:
         self.hdri = None                   # app/pbgi/hdri.py: lights the asset instead of the scan
         self.last_receivers = None
         self._lobe = None                  # LobeBuffers, made on the first glossy render
+        self._lobe_tuning = None           # LobeWalkTuning: None = the GL renderer's own
         self._geo_key = None               # the cloud's geometry fingerprint
         self._asset_scene = None           # AssetScene, made on the first render with the asset
         self._splat_colors = None          # what the splats show: None = the scan's colours
@@ -516,7 +517,7 @@ class Relighter:
             lobe = replace(LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index),
                            seed_tile=(x0, y0, w, W))
             if self._lobe is None:
-                self._lobe = LobeBuffers(ctx)
+                self._lobe = LobeBuffers(ctx, tuning=self._lobe_tuning)
             stats.lobe_receivers = True
         stats.absent_features = absent_features(materials) if params.shader_variants else ()
         try:
@@ -571,6 +572,21 @@ class Relighter:
         return _RADIUS_CACHE["radius"]
 
     @property
+    def lobe_tuning(self):
+        """The lobe walk's LobeWalkTuning (app/pbgi/lobe.py): the GL renderer's own unless set
+        (``bench profile --lobe-tuning`` compares them on one device). The image is the same
+        either way; setting it drops the lobe buffers made with the other."""
+        return self._lobe.tuning if self._lobe is not None else (
+            self._lobe_tuning or lobe_walk_tuning(self.ctx.info.get("GL_RENDERER", "")))
+
+    @lobe_tuning.setter
+    def lobe_tuning(self, tuning) -> None:
+        if self._lobe is not None and self._lobe.tuning != tuning:
+            self._lobe.release()
+            self._lobe = None
+        self._lobe_tuning = tuning
+
+    @property
     def lobe_buffers(self):
         """The last render's lobe micro-buffers (app/pbgi/lobe.py; None before any glossy
         material): rows in the order of ``last_receivers`` (tests, debugging)."""
@@ -581,9 +597,10 @@ class Relighter:
                       edge_samples: int = 1) -> RenderResult:
         """The mean of ``passes`` renders (pass_index 0 .. passes - 1, their samples centred
         together by gbuffer.pass_jitter): anti-aliased pixels (alpha is the covered fraction
-        and the radiance is premultiplied by it) and the lobe buffers' noise averaged. ``edge_samples`` above
-        ``passes``: the pixels a silhouette crosses (app/pbgi/antialias.py) are then rendered
-        ``edge_samples`` times more, gathering only their receivers, as that many passes -
+        and the radiance is premultiplied by it) and the lobe buffers' noise averaged.
+        ``edge_samples`` above ``passes``: the pixels a silhouette crosses
+        (app/pbgi/antialias.py) are then rendered ``edge_samples`` times more, gathering only
+        their receivers, as that many passes -
         exactly what ``passes=edge_samples`` gives them (pass_jitter centres a set of passes'
         samples only all together, so the first passes' samples are not reused for them).
         ``progress(done, render_steps(passes, edge_samples))`` after each render. Stats: the

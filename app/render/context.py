@@ -57,5 +57,17 @@ def renderer_name() -> str:
     return f"{ctx.info['GL_RENDERER']} (GL {ctx.version_code})"
 
 
+# GL_RENDERER names of the CPU rasterisers Mesa ships (llvmpipe, softpipe, the old swrast).
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software rasterizer")
+
+
+def is_software_renderer(renderer: str) -> bool:
+    """Whether a GL_RENDERER string names a CPU rasteriser: a few shaders pick their variant by
+    it, because what is cheap on one (a per-invocation table in private memory) is dear on a GPU
+    (app/pbgi/lobe.py: LobeWalkTuning)."""
+    name = renderer.lower()
+    return any(s in name for s in SOFTWARE_RENDERERS)
+
+
 def is_headless_display() -> bool:
     return not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY")

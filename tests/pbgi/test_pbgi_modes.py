@@ -405,3 +405,26 @@ def test_profile_splits_each_frame_into_its_parts(capsys):
             assert "far_ms" in m and "near_ms" in m
     out = capsys.readouterr().out
     assert out.count("| classic |") == 2 and "cut / floor" in out
+
+
+def test_profile_records_the_lobe_tuning_it_ran():
+    """--lobe-tuning: auto is the GL renderer's own (software here), and the other is forced;
+    the records say which ran, and the forced one walks the same nodes."""
+    import argparse
+
+    from app.bench import profile
+    from app.pbgi.lobe import lobe_walk_tuning, tuning_name
+    from app.render.context import get_context
+    ap = argparse.ArgumentParser()
+    profile.add_arguments(ap)
+    base = ["--viewport", "16", "--microbuffer", "8", "--repeat", "1", "--points", "20000",
+            "--modes", "classic", "--materials", "glossy"]
+    auto = profile.run(ap.parse_args(base))
+    own = tuning_name(lobe_walk_tuning(get_context().info["GL_RENDERER"]))
+    other = "gpu" if own == "software" else "software"
+    forced = profile.run(ap.parse_args(base + ["--lobe-tuning", other]))
+    assert auto[0]["case"]["lobe_tuning"] == own and forced[0]["case"]["lobe_tuning"] == other
+    assert forced[0]["metrics"]["lobe_visits_per_receiver"] == pytest.approx(
+        auto[0]["metrics"]["lobe_visits_per_receiver"], rel=1e-6)
+    with pytest.raises(SystemExit):
+        ap.parse_args(base + ["--lobe-tuning", "fast"])

@@ -59,10 +59,13 @@ def test_gpu_tuning_gives_the_same_image(demo_relighter, name):
     takes more dispatches. A wrong cell index or a lost resume would change all three."""
     r = demo_relighter
     mat = MATERIALS[name]
-    soft = _render(r, mat, SOFTWARE_TUNING)
-    assert r.lobe_buffers.tuning == SOFTWARE_TUNING
-    gpu = _render(r, mat, GPU_TUNING)
-    assert r.lobe_buffers.tuning == GPU_TUNING          # the setter dropped the other buffers
+    try:
+        soft = _render(r, mat, SOFTWARE_TUNING)
+        assert r.lobe_buffers.tuning == SOFTWARE_TUNING
+        gpu = _render(r, mat, GPU_TUNING)
+        assert r.lobe_buffers.tuning == GPU_TUNING      # the setter dropped the other buffers
+    finally:
+        r.lobe_tuning = None                             # back to the renderer's own
     for res in (soft, gpu):
         assert res.stats.completed and res.stats.lobe_receivers and not res.stats.lobe_incomplete
     assert gpu.stats.lobe_visited == pytest.approx(soft.stats.lobe_visited, rel=1e-6)
@@ -71,4 +74,3 @@ def test_gpu_tuning_gives_the_same_image(demo_relighter, name):
     scale = float(a[soft.image[..., 3] > 0].mean())
     assert scale > 0
     assert np.abs(a - b).max() <= 1e-4 * scale
-    r.lobe_tuning = None                                 # back to the renderer's own

@@ -189,10 +189,10 @@ class LobeBuffers:
     """The lobe micro-buffers of one batch (an RG32UI image, one row per receiver) and the walk
     that fills them (shaders/pbgi_lobe.glsl)."""
 
-    def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768,
-                 tuning: LobeWalkTuning | None = None, max_rounds: int = 100000):
-        self.tuning = tuning or lobe_walk_tuning(ctx.info.get("GL_RENDERER", ""))
-        list_cap = self.tuning.list_cap
+    def __init__(self, ctx, tuning: LobeWalkTuning, steps: int = 16384,
+                 splat_budget: int = 32768, max_rounds: int = 100000):
+        self.tuning = tuning
+        list_cap = tuning.list_cap
         if steps + splat_budget + list_cap >= LOOP_LIMIT:
             raise ValueError("steps + splat_budget must stay below llvmpipe's loop limit")
         self.ctx = ctx

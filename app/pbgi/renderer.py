@@ -517,7 +517,7 @@ class Relighter:
             lobe = replace(LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index),
                            seed_tile=(x0, y0, w, W))
             if self._lobe is None:
-                self._lobe = LobeBuffers(ctx, tuning=self._lobe_tuning)
+                self._lobe = LobeBuffers(ctx, self.lobe_tuning)
             stats.lobe_receivers = True
         stats.absent_features = absent_features(materials) if params.shader_variants else ()
         try:
@@ -576,15 +576,14 @@ class Relighter:
         """The lobe walk's LobeWalkTuning (app/pbgi/lobe.py): the GL renderer's own unless set
         (``bench profile --lobe-tuning`` compares them on one device). The image is the same
         either way; setting it drops the lobe buffers made with the other."""
-        return self._lobe.tuning if self._lobe is not None else (
-            self._lobe_tuning or lobe_walk_tuning(self.ctx.info.get("GL_RENDERER", "")))
+        return self._lobe_tuning or lobe_walk_tuning(self.ctx.info.get("GL_RENDERER", ""))
 
     @lobe_tuning.setter
     def lobe_tuning(self, tuning) -> None:
-        if self._lobe is not None and self._lobe.tuning != tuning:
+        self._lobe_tuning = tuning
+        if self._lobe is not None and self._lobe.tuning != self.lobe_tuning:
             self._lobe.release()
             self._lobe = None
-        self._lobe_tuning = tuning
 
     @property
     def lobe_buffers(self):

@@ -62,7 +62,7 @@ SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software rasterizer")
 
 
 def is_software_renderer(renderer: str) -> bool:
-    """Whether a GL_RENDERER string names a CPU rasteriser: a few shaders pick their variant by
+    """Whether a GL_RENDERER string names a CPU rasteriser: the lobe walk picks its variant by
     it, because what is cheap on one (a per-invocation table in private memory) is dear on a GPU
     (app/pbgi/lobe.py: LobeWalkTuning)."""
     name = renderer.lower()

@@ -183,6 +183,10 @@ void main() {
     uint rect = 0u, cells = 0u;
     LobeCursor cur;
     bool load = true;
+#ifdef CUT_WALK_ONLY
+    it = cost;                          // the walk alone (lib/pbgi_cut.glsl: cut_raster)
+    k = count;
+#else
     for (it = 0u; it < cost; ++it) {
         if (load) {
             nd = cut_node(cut_list_node[k], p, u_inv_cell_area);
@@ -206,9 +210,13 @@ void main() {
         }
         if (++n == cells) { k++; load = true; }
     }
+#endif
     uint resume = (it == cost && k == count) ? node : cut_list_node[min(k, count - 1u)];
     if (count == 0u) resume = node;
     uint flags = (resume >= end ? WALK_DONE : 0u) | (it == cost ? 0u : WALK_CUT_SHORT);
+#ifdef CUT_WALK_ONLY
+    it = 0u;                            // nothing was ray cast
+#endif
     state[i] = ClassicState(resume, st.visited + steps, st.flags | flags, st.tests + it);
     if (resume < end) atomicAdd(remaining, 1u);
 }

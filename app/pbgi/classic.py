@@ -118,9 +118,10 @@ class ClassicMode(MicroBufferMode):
 
     name = "classic"
 
-    def __init__(self, ctx, params: RenderParams):
+    def __init__(self, ctx, params: RenderParams, defines: dict | None = None):
         self.stop_factor = float(params.stop_factor)
-        super().__init__(ctx, params, ClassicCut(ctx, stop_factor=self.stop_factor))
+        super().__init__(ctx, params, ClassicCut(ctx, stop_factor=self.stop_factor,
+                                                 defines=defines))
 
     def fits(self, params: RenderParams) -> bool:
         return float(params.stop_factor) == self.stop_factor

@@ -455,20 +455,24 @@ class FarFieldShare(CutFinder):
 
     def __init__(self, ctx, tolerance: float = DEFAULT_TOLERANCE,
                  max_level: int = DEFAULT_MAX_LEVEL, max_cone: float = DEFAULT_MAX_CONE,
-                 share_fraction: float = 0.25, stop_factor: float = 4.0):
+                 share_fraction: float = 0.25, stop_factor: float = 4.0,
+                 defines: dict | None = None):
         if not tolerance > 0:
             raise ValueError(f"parallax tolerance must be > 0, got {tolerance!r}")
         self.ctx = ctx
         self.tolerance, self.max_level = float(tolerance), int(max_level)
         self.max_cone = float(max_cone)
         self.share_fraction = float(share_fraction)
-        self.far = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 1},
+        self.far = ClassicCut(ctx, stop_factor=stop_factor,
+                              defines={"SHARE_SPLIT": 1, **(defines or {})},
                               workgroup=FAR_WORKGROUP)
-        self.near = ClassicCut(ctx, stop_factor=stop_factor, defines={"SHARE_SPLIT": 2})
+        self.near = ClassicCut(ctx, stop_factor=stop_factor,
+                               defines={"SHARE_SPLIT": 2, **(defines or {})})
         self.merge = load_compute(ctx, "pbgi_share_merge.glsl")
         self.block_mb = MicroBuffers(ctx)
         self.offset = (0, 0)          # the last batch's block-grid offset (grid_offset)
         self.dither = True            # dithered block membership (DITHER); False: square blocks
+        self._merge_s = 0.0           # seconds of the batch's copies (_merge), so far
         self.level_fit = True         # block levels (app/pbgi/block_levels.py); False: all 1
         # the last batch's blocks (choose_blocks), their E / pi and levels (tests, debugging)
         self.last_blocks = self.last_irradiance = self.last_levels = None
@@ -507,8 +511,12 @@ class FarFieldShare(CutFinder):
         pr["u_begin"], pr["u_end"] = r0, r1
         pr["u_block0"], pr["u_block1"] = b0, b1
         pr["u_clear_unshared"] = bool(clear)
+        self.ctx.finish()             # timed apart (ShareFigures.ms_share_merge)
+        t = time.perf_counter()
         pr.run(dispatch_groups(r1 - r0))
         self.ctx.memory_barrier()
+        self.ctx.finish()
+        self._merge_s += time.perf_counter() - t
 
     def begin_group(self, frame, first: int, count: int, m: int) -> None:
         """(CutFinder) The group's blocks, chosen once over all its receivers (see "Batches"
@@ -580,6 +588,7 @@ class FarFieldShare(CutFinder):
         rounds = chunks = 0
         peak_bytes = 0
         t_lv = 0.0                    # the block levels' share of the chunk loop
+        self._merge_s = 0.0           # the copies' share of it (_merge)
         env_bytes = 0                 # the room's cube map (the Relighter's, shared)
         try:
             block_buf = self._buffer(block_of)
@@ -691,6 +700,7 @@ class FarFieldShare(CutFinder):
                 share_blocks=nb - nc, share_chunks=chunks, share_receivers=int(has.sum()),
                 share_block_visits=int(far_visited[:nb].sum()),
                 ms_share_blocks=(t1 - t0 + t_choose) * 1e3, ms_share_far=(t2 - t1 - t_lv) * 1e3,
+                ms_share_merge=self._merge_s * 1e3,
                 ms_share_levels=(t_lv + t_levels - t2) * 1e3, ms_share_near=(t3 - t_levels) * 1e3,
                 share_levelled=int(((levels != 1.0).any(1) & (blocks["last"] >= 0)).sum()),
                 share_block_max=int(bsize.max()) if nb else 0))

@@ -99,6 +99,10 @@ for _w in (BSH_TEX_WIDTH, MIP_WIDTH):
 LOOP_LIMIT = 65535   # llvmpipe: loop iterations per invocation, all loops together, past which
                      # it leaves the shader silently (every bounded walk stays below it)
 
+# The walks compiled without their rasterisation and ray casts (lib/pbgi_cut.glsl: cut_raster,
+# pbgi_lobe.glsl): a render that times its walks alone (Relighter.walks_only, bench profile).
+WALK_ONLY = {"CUT_WALK_ONLY": 1}
+
 
 def dispatch_groups(n: int, size: int = WORKGROUP) -> int:
     """Work groups for one invocation per item (``size`` invocations each)."""

@@ -40,16 +40,16 @@ class HybridMode(MicroBufferMode):
 
     name = "hybrid"
 
-    def __init__(self, ctx, params: RenderParams):
+    def __init__(self, ctx, params: RenderParams, defines: dict | None = None):
         self.omega_tr_factor = float(params.omega_tr_factor)
         self.parallax_tolerance = float(params.parallax_tolerance)
         self.stop_factor = float(params.stop_factor)
         if self.parallax_tolerance > 0:
             cut = FarFieldShare(ctx, tolerance=self.parallax_tolerance,
-                                stop_factor=self.stop_factor)
+                                stop_factor=self.stop_factor, defines=defines)
         else:
             cut = PairRefiner(ctx, omega_tr_factor=self.omega_tr_factor,
-                              stop_factor=self.stop_factor)
+                              stop_factor=self.stop_factor, defines=defines)
         super().__init__(ctx, params, cut)
 
     def fits(self, params: RenderParams) -> bool:

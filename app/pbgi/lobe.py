@@ -190,8 +190,10 @@ class LobeBuffers:
     that fills them (shaders/pbgi_lobe.glsl)."""
 
     def __init__(self, ctx, tuning: LobeWalkTuning, steps: int = 16384,
-                 splat_budget: int = 32768, max_rounds: int = 100000):
+                 splat_budget: int = 32768, max_rounds: int = 100000,
+                 defines: dict | None = None):
         self.tuning = tuning
+        self.defines = dict(defines or {})   # added to the walk's (gpu_layout.WALK_ONLY)
         list_cap = tuning.list_cap
         if steps + splat_budget + list_cap >= LOOP_LIMIT:
             raise ValueError("steps + splat_budget must stay below llvmpipe's loop limit")
@@ -244,6 +246,7 @@ class LobeBuffers:
             defines = {"LIST_CAP": self.list_cap, "LOBE_CELLS": int(cells),
                        "LOBE_RAY_TABLE": int(self.tuning.ray_table)}
             defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in absent})
+            defines.update(self.defines)
             self._progs[key] = load_compute(self.ctx, "pbgi_lobe.glsl", defines=defines)
         return self._progs[key]
 

@@ -357,9 +357,10 @@ class MipmappedMode(MicroBufferMode):
 
     name = "mipmapped"
 
-    def __init__(self, ctx, params: RenderParams):
+    def __init__(self, ctx, params: RenderParams, defines: dict | None = None):
         self.stop_factor = float(params.stop_factor)
-        super().__init__(ctx, params, MipmappedCut(ctx, stop_factor=self.stop_factor))
+        super().__init__(ctx, params, MipmappedCut(ctx, stop_factor=self.stop_factor,
+                                                   defines=defines))
 
     def fits(self, params: RenderParams) -> bool:
         return float(params.stop_factor) == self.stop_factor

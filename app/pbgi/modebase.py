@@ -207,7 +207,9 @@ class RenderMode(ABC):
 
     name: ClassVar[str]
 
-    def __init__(self, ctx, params: RenderParams):
+    def __init__(self, ctx, params: RenderParams, defines: dict | None = None):
+        """``defines``: added to every walk program the mode compiles (None in a render; the
+        profile's gpu_layout.WALK_ONLY)."""
         self.ctx = ctx
 
     @abstractmethod
@@ -265,7 +267,7 @@ class MicroBufferMode(RenderMode):
     gather reads them (see the module docstring). Subclasses pass their CutFinder."""
 
     def __init__(self, ctx, params: RenderParams, cut: CutFinder):
-        super().__init__(ctx, params)
+        super().__init__(ctx, params)     # the cut finder was made with the mode's defines
         self.cut = cut
 
     def render(self, frame: Frame, stats: RenderStats) -> int:

@@ -28,9 +28,10 @@ assert tuple(MODES) == RENDER_MODES, "app.params.RENDER_MODES and MODES name the
 assert all(cls.name == name for name, cls in MODES.items())
 
 
-def create_mode(name: str, ctx, params: RenderParams) -> RenderMode:
-    """A new mode object ``name`` for ``params`` (checked)."""
+def create_mode(name: str, ctx, params: RenderParams, defines: dict | None = None) -> RenderMode:
+    """A new mode object ``name`` for ``params`` (checked); ``defines`` go to its walks'
+    programs (RenderMode)."""
     cls = MODES.get(name)
     if cls is None:
         raise ScanlightError(None, f"unknown render mode {name!r} (known: {', '.join(MODES)})")
-    return cls(ctx, params.validated())
+    return cls(ctx, params.validated(), defines=defines)

@@ -37,7 +37,7 @@ import numpy as np
 from app.errors import ScanlightError
 from app.io.limits import MAX_RADIANCE
 from app.pbgi.gmip import z_order  # receivers in Z-order: batches are compact squares
-from app.pbgi.gpu_layout import GATHER_OUTPUT, GATHER_PARTS, RECEIVER
+from app.pbgi.gpu_layout import GATHER_OUTPUT, GATHER_PARTS, RECEIVER, WALK_ONLY
 from app.pbgi.hierarchy import recolor
 from app.pbgi.microbuffer import MIN_SIZE, MicroBuffers, entries
 from app.pbgi.lobe import (LobeBuffers, LobeSettings, lobe_only_receivers, lobe_walk_tuning,
@@ -98,6 +98,7 @@ class Relighter:
         self.last_receivers = None
         self._lobe = None                  # LobeBuffers, made on the first glossy render
         self._lobe_tuning = None           # LobeWalkTuning: None = the GL renderer's own
+        self._walks_only = False           # see walks_only
         self._geo_key = None               # the cloud's geometry fingerprint
         self._asset_scene = None           # AssetScene, made on the first render with the asset
         self._splat_colors = None          # what the splats show: None = the scan's colours
@@ -351,7 +352,8 @@ class Relighter:
         if held is None or not held.fits(params):
             if held is not None:
                 held.release()
-            held = self.modes[params.mode] = create_mode(params.mode, self.ctx, params)
+            held = self.modes[params.mode] = create_mode(
+                params.mode, self.ctx, params, defines=WALK_ONLY if self._walks_only else None)
         return held
 
     def forget_microbuffers(self) -> None:
@@ -517,7 +519,8 @@ class Relighter:
             lobe = replace(LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index),
                            seed_tile=(x0, y0, w, W))
             if self._lobe is None:
-                self._lobe = LobeBuffers(ctx, self.lobe_tuning)
+                self._lobe = LobeBuffers(ctx, self.lobe_tuning,
+                                         defines=WALK_ONLY if self._walks_only else None)
             stats.lobe_receivers = True
         stats.absent_features = absent_features(materials) if params.shader_variants else ()
         try:
@@ -584,6 +587,28 @@ class Relighter:
         if self._lobe is not None and self._lobe.tuning != self.lobe_tuning:
             self._lobe.release()
             self._lobe = None
+
+    @property
+    def walks_only(self) -> bool:
+        """Render with the walks alone: no accepted node is rasterised or ray cast
+        (gpu_layout.WALK_ONLY), so each render's cut and lobe times are its walks' and
+        ``bench profile`` can tell them from the rasterisation. The micro-buffers stay empty
+        and the image is meaningless. Setting it drops the modes and lobe buffers made the
+        other way."""
+        return self._walks_only
+
+    @walks_only.setter
+    def walks_only(self, on: bool) -> None:
+        if bool(on) == self._walks_only:
+            return
+        self._walks_only = bool(on)
+        for mode in self.modes.values():
+            mode.release()
+        self.modes.clear()
+        if self._lobe is not None:
+            self._lobe.release()
+            self._lobe = None
+        self.forget_microbuffers()
 
     @property
     def lobe_buffers(self):

@@ -84,6 +84,7 @@ class ShareFigures(Figures):
     share_block_visits: int = 0       # nodes the far-field walks visited, all blocks
     ms_share_blocks: float = 0.0      # choosing the blocks (CPU)
     ms_share_far: float = 0.0         # the far-field walks and copies
+    ms_share_merge: float = 0.0       # of ms_share_far: the copies into the receivers' rows
     ms_share_near: float = 0.0        # the per-receiver near-field walks
     ms_share_levels: float = 0.0      # the blocks' far-field and cube-map irradiance, the fit
     share_levelled: int = 0           # blocks whose level is not 1 (app/pbgi/block_levels.py)

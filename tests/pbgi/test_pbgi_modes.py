@@ -372,6 +372,36 @@ def test_render_cli_modes_give_classic_s_image(tmp_path):
                  str(tmp_path / "x.exr")]) == 2
 
 
+@pytest.mark.parametrize("mode", MODES)
+def test_walks_only_walks_the_same_nodes_and_rasterises_none(demo_relighter, mode):
+    """Relighter.walks_only (bench profile's walk / raster split, gpu_layout.WALK_ONLY): the
+    same walks - the same node visits per receiver, the cosine walk's and the glossy lobe's -
+    but no micro-buffer entry is tested and no lobe ray is cast, so the asset gathers no light
+    at all; switched back, the Relighter renders the image it rendered before, bit for bit."""
+    from app.demo.room import default_views
+    from app.material import Material
+    r = demo_relighter
+    cam = default_views(24, 24)["closeup"]
+    gold = Material(base_color=(1.0, 0.78, 0.34), roughness=0.25, metallic=1.0)
+    params = RenderParams(mode=mode, microbuffer=8)
+    before = r.render(cam, [gold], params)
+    try:
+        r.walks_only = True
+        walks = r.render(cam, [gold], params)
+    finally:
+        r.walks_only = False
+    after = r.render(cam, [gold], params)
+    s, w = before.stats, walks.stats
+    assert s.nodes_visited > 0 and w.nodes_visited == pytest.approx(s.nodes_visited, rel=1e-9)
+    assert s.lobe_visited > 0 and w.lobe_visited == pytest.approx(s.lobe_visited, rel=1e-9)
+    assert s.splat_tests > 0 and s.lobe_tests > 0
+    assert not w.splat_tests and w.lobe_tests == 0
+    covered = before.image[..., 3] > 0
+    assert covered.sum() > 50 and before.image[covered, :3].max() > 0
+    assert np.all(walks.image[covered, :3] == 0)
+    assert np.array_equal(after.image, before.image)
+
+
 def test_profile_splits_each_frame_into_its_parts(capsys):
     """bench profile: one record per mode and material; the parts are each render's own timers
     (non-negative, within the frame's ms); only the glossy material fills lobe buffers, and not

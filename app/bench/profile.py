@@ -5,13 +5,23 @@ Parts, from each render's own timers (app/pbgi/stats.py, every one measured betw
 ``ctx.finish()`` calls, so a part is the GPU work it names):
 
 * ``gbuffer``: rasterising the asset and compacting its receivers;
-* ``cut``: the hierarchy walk and the rasterisation of the accepted nodes into the micro-buffers
-  (one shader pass each batch: the walk and the raster are not separable from outside it); for
-  Hybrid its far-field block walks and the per-receiver near field (``far`` / ``near``);
+* ``cut``: the hierarchy walk and the rasterisation of the accepted nodes into the micro-buffers;
+  for Hybrid its far-field block walks and the per-receiver near field (``far`` / ``near``);
 * ``lobe``: the glossy receivers' importance-warped micro-buffers and their ray casts
   (app/pbgi/lobe.py), zero for a rough material;
 * ``gather``: the final gather with the BRDF;
 * ``other``: the rest of ``ms`` (buffer set-up, read-back).
+
+The walk and the rasterisation are one shader pass per batch, so a timer cannot split them;
+each cell is also rendered by a second Relighter whose walks rasterise and ray cast nothing
+(``Relighter.walks_only``: the same walks, the same visits, empty micro-buffers), interleaved
+with the real one. Its cut and lobe times are the walks' (``walk``, ``lobe_walk``; Hybrid's
+``far_walk`` / ``near_walk``), and the rest of the real render's is the rasterisation
+(``raster``; ``far_raster`` / ``near_raster``) and the lobe's ray casts (``lobe_cast``):
+differences of two fastest-of-n timings, so noisy to a few ms, and clamped at zero. Hybrid's
+cut also holds the sharing itself (``share``: choosing the blocks, their levels, and copying
+each block's micro-buffer into its receivers', ``merge``, timed apart by the far field), which
+is neither walk nor raster.
 
 Node visits and micro-buffer entry tests per receiver are the walks' own counts (means; the
 lobe walk's separately, over all receivers). ``floor_ms`` is
@@ -67,13 +77,16 @@ def add_arguments(parser) -> None:
     add_param_options(parser, "bench profile")     # --microbuffer: the table's
 
 
-def parts(s) -> dict:
-    """ms per part of one render's RenderStats (module docstring), and the walk's figures."""
+def parts(s, walks=None) -> dict:
+    """ms per part of one render's RenderStats (module docstring), and the walk's figures;
+    ``walks``: the same cell's RenderStats with Relighter.walks_only (the walk / raster
+    split)."""
     out = {"ms": s.ms, "gbuffer_ms": s.ms_gbuffer, "cut_ms": s.ms_cut, "lobe_ms": s.ms_lobe,
            "gather_ms": s.ms_gather}
     if s.share is not None:
         out["far_ms"], out["near_ms"] = s.share.ms_share_far, s.share.ms_share_near
         out["levels_ms"] = s.share.ms_share_levels
+        out["merge_ms"] = s.share.ms_share_merge
     out["other_ms"] = max(s.ms - s.ms_gbuffer - s.ms_cut - s.ms_lobe - s.ms_gather, 0.0)
     out["receivers"] = s.receivers
     out["visits_per_receiver"] = float(s.nodes_visited)
@@ -83,6 +96,27 @@ def parts(s) -> dict:
     visits = float(s.nodes_visited) * s.receivers
     out["floor_ms"] = visits / FLOOR_VISITS_PER_S * 1e3
     out["cut_over_floor"] = s.ms_cut / out["floor_ms"] if out["floor_ms"] > 0 else float("nan")
+    if walks is not None:
+        out["walk_ms"], out["lobe_walk_ms"] = walks.ms_cut, walks.ms_lobe
+        out["raster_ms"] = max(s.ms_cut - walks.ms_cut, 0.0)
+        out["lobe_cast_ms"] = max(s.ms_lobe - walks.ms_lobe, 0.0)
+        if s.share is not None and walks.share is not None:
+            # the far part also copies the blocks' rows into their receivers' (merge_ms), the
+            # same work in both renders: neither walk nor raster
+            w = walks.share
+            out["far_walk_ms"] = max(w.ms_share_far - w.ms_share_merge, 0.0)
+            out["far_raster_ms"] = max(s.share.ms_share_far - s.share.ms_share_merge
+                                       - out["far_walk_ms"], 0.0)
+            out["near_walk_ms"] = w.ms_share_near
+            out["near_raster_ms"] = max(s.share.ms_share_near - w.ms_share_near, 0.0)
+            out["walk_ms"] = out["far_walk_ms"] + out["near_walk_ms"]
+            out["raster_ms"] = out["far_raster_ms"] + out["near_raster_ms"]
+        # Hybrid's sharing itself: choosing the blocks, their levels, the copies
+        out["share_ms"] = max(s.ms_cut - out["walk_ms"] - out["raster_ms"], 0.0)
+        out["walk_over_floor"] = (out["walk_ms"] / out["floor_ms"] if out["floor_ms"] > 0
+                                  else float("nan"))
+        out["walk_visits_per_receiver"] = float(walks.nodes_visited)
+        out["walk_lobe_visits_per_receiver"] = float(walks.lobe_visited)
     return out
 
 
@@ -93,53 +127,60 @@ def run(args) -> list[dict]:
     from app.pbgi.lobe import LOBE_TUNINGS, tuning_name
     from app.pbgi.renderer import RenderParams
     args.microbuffer = int(param_values(args, "bench profile")["pbgi.microbuffer"])
-    r = setup(args.points)
+    r, rw = setup(args.points), setup(args.points)
+    rw.walks_only = True                          # the walks alone (module docstring)
     if args.lobe_tuning != "auto":
-        r.lobe_tuning = LOBE_TUNINGS[args.lobe_tuning]
+        r.lobe_tuning = rw.lobe_tuning = LOBE_TUNINGS[args.lobe_tuning]
     cam = default_views(args.viewport, args.viewport)[args.view]
     warm = default_views(16, 16)[args.view]
     mats = {name: Material(**kw) for name, kw in MATERIALS.items() if name in args.materials}
     params = {mode: RenderParams(mode=mode, microbuffer=args.microbuffer) for mode in args.modes}
     for mode in args.modes:                       # compile and JIT every variant first
         for mat in mats.values():
-            r.render(warm, [mat], params[mode])
+            for rel in (r, rw):
+                rel.render(warm, [mat], params[mode])
     best: dict = {}
     for _ in range(max(1, args.repeat)):
         for name, mat in mats.items():
             for mode in args.modes:               # interleaved: the same conditions for all
-                r.forget_microbuffers()
-                st = r.render(cam, [mat], params[mode]).stats
-                key = (mode, name)
-                if key not in best or st.ms < best[key].ms:
-                    best[key] = st
+                for rel in (r, rw):
+                    rel.forget_microbuffers()
+                    st = rel.render(cam, [mat], params[mode]).stats
+                    key = (mode, name, rel is rw)
+                    if key not in best or st.ms < best[key].ms:
+                        best[key] = st
+    for rel in (r, rw):
+        rel.release()
     tuning = tuning_name(r.lobe_tuning)
     records = [record("profile", {"mode": mode, "material": name, "viewport": args.viewport,
                                   "microbuffer": args.microbuffer, "view": args.view,
                                   "lobe_tuning": tuning},
-                      parts(best[(mode, name)]))
+                      parts(best[(mode, name, False)], best[(mode, name, True)]))
                for name in mats for mode in args.modes]
     print(markdown(records))
     return records
 
 
 def markdown(records: list[dict]) -> str:
-    head = ("| mode | material | ms | G-buffer | cut (walk + raster) | lobe | gather | other | "
-            "visits / receiver | entry tests / receiver | lobe visits, tests / receiver | "
-            "floor ms | cut / floor |")
-    lines = [head, "|" + "---|" * 13]
+    head = ("| mode | material | ms | G-buffer | walk | raster | sharing | lobe walk | "
+            "lobe ray casts | gather | other | visits / receiver | entry tests / receiver | "
+            "lobe visits, tests / receiver | floor ms | walk / floor |")
+    lines = [head, "|" + "---|" * 16]
     for rec in records:
         c, m = rec["case"], rec["metrics"]
         pct = (lambda k: f"{m[k]:.0f} ({100 * m[k] / m['ms']:.0f}%)" if m["ms"] > 0 else "-")
-        cut = pct("cut_ms")
-        if "far_ms" in m:
-            cut += (f" [far {m['far_ms']:.0f}, levels {m.get('levels_ms', 0.0):.0f}, "
-                    f"near {m['near_ms']:.0f}]")
+        walk, raster, share = pct("walk_ms"), pct("raster_ms"), pct("share_ms")
+        if "far_walk_ms" in m:
+            walk += f" [far {m['far_walk_ms']:.0f}, near {m['near_walk_ms']:.0f}]"
+            raster += f" [far {m['far_raster_ms']:.0f}, near {m['near_raster_ms']:.0f}]"
+            share += f" [copies {m['merge_ms']:.0f}, levels {m['levels_ms']:.0f}]"
         lines.append(f"| {c['mode']} | {c['material']} | {m['ms']:.0f} | {pct('gbuffer_ms')} | "
-                     f"{cut} | {pct('lobe_ms')} | {pct('gather_ms')} | {pct('other_ms')} | "
+                     f"{walk} | {raster} | {share} | {pct('lobe_walk_ms')} | "
+                     f"{pct('lobe_cast_ms')} | "
+                     f"{pct('gather_ms')} | {pct('other_ms')} | "
                      f"{m['visits_per_receiver']:.0f} | {m['tests_per_receiver']:.0f} | "
                      f"{m['lobe_visits_per_receiver']:.0f}, {m['lobe_tests_per_receiver']:.0f} | "
-                     f"{m['floor_ms']:.1f} | "
-                     f"{m['cut_over_floor']:.1f} |")
+                     f"{m['floor_ms']:.1f} | {m['walk_over_floor']:.1f} |")
     return "\n".join(lines)
 
 

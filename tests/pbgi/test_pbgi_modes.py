@@ -433,8 +433,23 @@ def test_profile_splits_each_frame_into_its_parts(capsys):
                                                   / profile.FLOOR_VISITS_PER_S * 1e3)
         if rec["case"]["mode"] == "hybrid":
             assert "far_ms" in m and "near_ms" in m
+            assert 0 < m["merge_ms"] <= m["far_ms"]
+            assert m["walk_ms"] == pytest.approx(m["far_walk_ms"] + m["near_walk_ms"])
+            assert m["raster_ms"] == pytest.approx(m["far_raster_ms"] + m["near_raster_ms"])
+        else:
+            assert m["share_ms"] == pytest.approx(0, abs=1e-9)
+        # the walk / raster split: the walks-only Relighter walked the same nodes; walk,
+        # raster and (Hybrid) sharing make up the cut
+        assert min(m["walk_ms"], m["raster_ms"], m["share_ms"], m["lobe_walk_ms"],
+                   m["lobe_cast_ms"]) >= 0
+        assert m["walk_ms"] + m["raster_ms"] + m["share_ms"] >= m["cut_ms"] * 0.999
+        assert m["lobe_cast_ms"] <= m["lobe_ms"]
+        assert m["walk_visits_per_receiver"] == pytest.approx(m["visits_per_receiver"],
+                                                              rel=1e-9)
+        assert m["walk_lobe_visits_per_receiver"] == pytest.approx(
+            m["lobe_visits_per_receiver"], rel=1e-9)
     out = capsys.readouterr().out
-    assert out.count("| classic |") == 2 and "cut / floor" in out
+    assert out.count("| classic |") == 2 and "walk / floor" in out
 
 
 def test_profile_records_the_lobe_tuning_it_ran():

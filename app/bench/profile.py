@@ -166,10 +166,15 @@ def markdown(records: list[dict]) -> str:
             "lobe ray casts | gather | other | visits / receiver | entry tests / receiver | "
             "lobe visits, tests / receiver | floor ms | walk / floor |")
     lines = [head, "|" + "---|" * 16]
+    noisy = False
     for rec in records:
         c, m = rec["case"], rec["metrics"]
         pct = (lambda k: f"{m[k]:.0f} ({100 * m[k] / m['ms']:.0f}%)" if m["ms"] > 0 else "-")
         walk, raster, share = pct("walk_ms"), pct("raster_ms"), pct("share_ms")
+        if (m["walk_ms"] > 1.05 * m["cut_ms"] + 1.0
+                or m["lobe_walk_ms"] > 1.05 * m["lobe_ms"] + 1.0):
+            walk += " (!)"            # the walks alone took longer than the whole render
+            noisy = True
         if "far_walk_ms" in m:
             walk += f" [far {m['far_walk_ms']:.0f}, near {m['near_walk_ms']:.0f}]"
             raster += f" [far {m['far_raster_ms']:.0f}, near {m['near_raster_ms']:.0f}]"
@@ -181,6 +186,9 @@ def markdown(records: list[dict]) -> str:
                      f"{m['visits_per_receiver']:.0f} | {m['tests_per_receiver']:.0f} | "
                      f"{m['lobe_visits_per_receiver']:.0f}, {m['lobe_tests_per_receiver']:.0f} | "
                      f"{m['floor_ms']:.1f} | {m['walk_over_floor']:.1f} |")
+    if noisy:
+        lines.append("\n(!) the walks-only render took longer than the whole one: the machine's "
+                     "noise or a first render at this size; a larger --repeat settles it.")
     return "\n".join(lines)
 
 

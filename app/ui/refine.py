@@ -14,10 +14,13 @@ time budget:
    below 1/16; 1/16 for the very first one) and adapted after it: slow previews lower it,
    fast ones climb back to the setting.
 2. *Tiles* (only once nothing has changed for a frame): the layer is re-rendered at full layer
-   resolution in strips of square cells, centre rows first. The cell side (8..64 px) and the
+   resolution in strips of square cells, centre rows first. The cell side (8..256 px) and the
    strip length come from the measured cost per pixel so each frame stays near the budget (at
    least one cell per frame, so refinement always advances). Cells not yet rendered keep
-   showing the upsampled preview. ``progress`` tells the UI how far it got, ``status_words``
+   showing the upsampled preview. On a CPU rasteriser the cost keeps cells at 8-32 px; on a GPU
+   a pixel costs 1-3 us and cells grow to 64-128 px: a 64 px cell (4096 receivers) neither
+   fills a GPU nor pays for a render call's set-up (the orbit measured with a cap of 64 and of
+   256 px in the README, "On a GPU again"). ``progress`` tells the UI how far it got, ``status_words``
    says it in words with the time left.
 
 The time left: the GI render is only part of a frame (the room, the composite, imgui and the
@@ -85,7 +88,7 @@ from app.pbgi.upsample import scaled_camera
 from app.render.gpu_layout import GI_PENDING, GI_TEXEL
 
 CELL = 32                 # tile granularity before the cost per pixel is known
-MIN_CELL, MAX_CELL = 8, 64
+MIN_CELL, MAX_CELL = 8, 256
 MIN_PREVIEW_SCALE = 1 / 16
 FIRST_PREVIEW_SCALE = 1 / 16  # before any cost per pixel is known: the cheapest
 MIN_PREVIEW_ASSET_PX = 3  # ... but never fewer preview pixels across the asset's rectangle: a
@@ -249,7 +252,7 @@ class ProgressiveGI:
     # -- control ---------------------------------------------------------------------------------
     def cell_size(self, budget_ms: float) -> int:
         """Square cells that cost at most about half a frame budget each (a power of two in
-        8..64, rounded down)."""
+        MIN_CELL..MAX_CELL, rounded down)."""
         if not self.ms_per_px:
             return CELL
         side = math.sqrt(max(budget_ms, 1e-3) * 0.5 / self.ms_per_px)

@@ -190,6 +190,20 @@ def test_hybrid_tiles_of_a_pass_add_up_to_one_render_of_the_layer(demo_relighter
         assert block_steps(layer_of(False, 1), mask, block=cell)["ratio"] > 1.3 * single
 
 
+@pytest.mark.parametrize("ms_per_px,side", [
+    (0.05, 16),         # llvmpipe-like: 40 ms / 0.05 ms = 800 px -> side 28 -> 16
+    (0.002, 128),       # a GPU (H100, Hybrid M 24): 20,000 px -> side 141 -> 128
+    (1e-5, 256),        # nearly free: the cap
+    (10.0, 8),          # dearer than a budget per cell: the floor
+])
+def test_cells_grow_with_a_cheap_pixel_up_to_the_cap(ms_per_px, side):
+    """A GPU's cheap pixels get cells up to 256 px (a 64 px cell cannot fill one), a CPU's keep
+    the small cells; half of an 80 ms budget per cell, a power of two, rounded down."""
+    gi = ProgressiveGI(lambda *a, **k: None)
+    gi.ms_per_px = ms_per_px
+    assert gi.cell_size(80) == side
+
+
 def test_steps_respect_the_budget_and_tiles_wait_for_idle():
     clock = Clock(0.05)                       # 0.05 ms per pixel
     gi = ProgressiveGI(clock.render, clock)

@@ -31,11 +31,7 @@
 #define CUT_LIST_CAP LIST_CAP
 #include "lib/pbgi_cut.glsl"
 
-// the local size: gen/bindings.glsl's WORKGROUP_SIZE, or the tuning's (app/pbgi/lobe.py)
-#ifndef LOBE_WORKGROUP
-#define LOBE_WORKGROUP WORKGROUP_SIZE
-#endif
-layout(local_size_x = LOBE_WORKGROUP) in;
+layout(local_size_x = WORKGROUP_SIZE) in;
 
 layout(std430, binding = SSBO_WALK_STATE) buffer State { ClassicState state[]; };
 layout(std430, binding = SSBO_COUNTERS) buffer Counter { uint remaining; };

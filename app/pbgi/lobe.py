@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.pbgi.gpu_layout import (CLASSIC_STATE, IMAGE, LOOP_LIMIT, MB_ENTRY, SSBO,
-                                 WALK_CUT_SHORT, WORKGROUP, dispatch_groups)
+                                 WALK_CUT_SHORT, dispatch_groups)
 from app.render.context import is_software_renderer
 from app.render.programs import load_compute
 
@@ -56,14 +56,9 @@ class LobeWalkTuning:
     both are per-thread local memory, spilled to the caches and DRAM for thousands of threads at
     once, and they cost more than the trigonometry and the extra dispatches they save: a GPU
     computes each ray where it is cast and keeps a shorter list (the sizes measured in the
-    README).
-
-    ``workgroup``: the walk's local size (LOBE_WORKGROUP in pbgi_lobe.glsl). A small viewport
-    has too few receivers to fill a GPU, and how evenly its workgroups spread over the
-    multiprocessors then sets the time of the slowest (README, "The lobe walk on a GPU")."""
+    README)."""
     list_cap: int
     ray_table: bool
-    workgroup: int = WORKGROUP
 
 
 SOFTWARE_TUNING = LobeWalkTuning(list_cap=256, ray_table=True)
@@ -250,8 +245,6 @@ class LobeBuffers:
                 raise ValueError("the lobe walk's loops would pass llvmpipe's loop limit")
             defines = {"LIST_CAP": self.list_cap, "LOBE_CELLS": int(cells),
                        "LOBE_RAY_TABLE": int(self.tuning.ray_table)}
-            if self.tuning.workgroup != WORKGROUP:
-                defines["LOBE_WORKGROUP"] = int(self.tuning.workgroup)
             defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in absent})
             defines.update(self.defines)
             self._progs[key] = load_compute(self.ctx, "pbgi_lobe.glsl", defines=defines)
@@ -289,7 +282,7 @@ class LobeBuffers:
         rounds, remaining = 0, count
         while remaining and rounds < self.max_rounds:
             self.counter.write(b"\0\0\0\0")
-            prog.run(dispatch_groups(count, self.tuning.workgroup))
+            prog.run(dispatch_groups(count))
             self.ctx.memory_barrier()
             remaining = int(np.frombuffer(self.counter.read(), np.uint32)[0])
             rounds += 1

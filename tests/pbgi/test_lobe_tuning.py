@@ -74,25 +74,3 @@ def test_gpu_tuning_gives_the_same_image(demo_relighter, name):
     scale = float(a[soft.image[..., 3] > 0].mean())
     assert scale > 0
     assert np.abs(a - b).max() <= 1e-4 * scale
-
-
-@pytest.mark.parametrize("workgroup", [32, 128])
-def test_workgroup_gives_the_same_image(demo_relighter, workgroup):
-    """The local size is a GPU's occupancy choice only: 32 or 128 invocations a workgroup walk
-    the same nodes and give the same image as the default 64 (dispatching 64-wide groups of a
-    32-wide program would leave half the receivers unwalked)."""
-    from dataclasses import replace
-    r = demo_relighter
-    mat = MATERIALS["gold 0.25"]
-    try:
-        base = _render(r, mat, GPU_TUNING)
-        other = _render(r, mat, replace(GPU_TUNING, workgroup=workgroup))
-        assert r.lobe_buffers.tuning.workgroup == workgroup
-    finally:
-        r.lobe_tuning = None
-    assert other.stats.completed and not other.stats.lobe_incomplete
-    assert other.stats.lobe_receivers == base.stats.lobe_receivers > 0
-    assert other.stats.lobe_visited == pytest.approx(base.stats.lobe_visited, rel=1e-6)
-    a, b = base.image[..., :3], other.image[..., :3]
-    scale = float(a[base.image[..., 3] > 0].mean())
-    assert np.abs(a - b).max() <= 1e-4 * scale

@@ -12,6 +12,10 @@ Parts, from each render's own timers (app/pbgi/stats.py, every one measured betw
 * ``gather``: the final gather with the BRDF;
 * ``other``: the rest of ``ms`` (buffer set-up, read-back).
 
+Hybrid chooses its blocks on the host before the cut's timer starts (CutFinder.begin_group,
+``ShareFigures.ms_share_chosen_before``); the profile moves that time from ``other`` to the
+sharing (below), where it belongs.
+
 The walk and the rasterisation are one shader pass per batch, so a timer cannot split them;
 each cell is also rendered by a second Relighter whose walks rasterise and ray cast nothing
 (``Relighter.walks_only``: the same walks, the same visits, empty micro-buffers), interleaved
@@ -27,6 +31,8 @@ Node visits and micro-buffer entry tests per receiver are the walks' own counts 
 lobe walk's separately, over all receivers). ``floor_ms`` is
 what those visits cost at the plain per-pixel walk's rate the guide measured on this machine
 (FLOOR_VISITS_PER_S), i.e. how far the cut is from a walk that does nothing but visit nodes.
+That rate is llvmpipe's on two cores: on any other GL renderer (a GPU) the floor is not known,
+and the record has NaN there.
 Every mode runs on the same demo scene in one run, interleaved, the fastest of ``--repeat``
 renders per cell (the machine is shared and noisy: ratios within one run only).
 """
@@ -77,24 +83,27 @@ def add_arguments(parser) -> None:
     add_param_options(parser, "bench profile")     # --microbuffer: the table's
 
 
-def parts(s, walks=None) -> dict:
+def parts(s, walks=None, floor: bool = True) -> dict:
     """ms per part of one render's RenderStats (module docstring), and the walk's figures;
     ``walks``: the same cell's RenderStats with Relighter.walks_only (the walk / raster
-    split)."""
+    split); ``floor``: the renderer is the one FLOOR_VISITS_PER_S was measured on."""
     out = {"ms": s.ms, "gbuffer_ms": s.ms_gbuffer, "cut_ms": s.ms_cut, "lobe_ms": s.ms_lobe,
            "gather_ms": s.ms_gather}
+    chosen = 0.0                        # Hybrid's blocks, chosen before the cut's timer
     if s.share is not None:
         out["far_ms"], out["near_ms"] = s.share.ms_share_far, s.share.ms_share_near
         out["levels_ms"] = s.share.ms_share_levels
         out["merge_ms"] = s.share.ms_share_merge
-    out["other_ms"] = max(s.ms - s.ms_gbuffer - s.ms_cut - s.ms_lobe - s.ms_gather, 0.0)
+        out["choose_ms"] = chosen = s.share.ms_share_chosen_before
+    out["other_ms"] = max(s.ms - s.ms_gbuffer - s.ms_cut - s.ms_lobe - s.ms_gather - chosen,
+                          0.0)
     out["receivers"] = s.receivers
     out["visits_per_receiver"] = float(s.nodes_visited)
     out["tests_per_receiver"] = float(s.splat_tests or 0.0)
     out["lobe_visits_per_receiver"] = float(s.lobe_visited)
     out["lobe_tests_per_receiver"] = float(s.lobe_tests)
     visits = float(s.nodes_visited) * s.receivers
-    out["floor_ms"] = visits / FLOOR_VISITS_PER_S * 1e3
+    out["floor_ms"] = visits / FLOOR_VISITS_PER_S * 1e3 if floor else float("nan")
     out["cut_over_floor"] = s.ms_cut / out["floor_ms"] if out["floor_ms"] > 0 else float("nan")
     if walks is not None:
         out["walk_ms"], out["lobe_walk_ms"] = walks.ms_cut, walks.ms_lobe
@@ -112,7 +121,7 @@ def parts(s, walks=None) -> dict:
             out["walk_ms"] = out["far_walk_ms"] + out["near_walk_ms"]
             out["raster_ms"] = out["far_raster_ms"] + out["near_raster_ms"]
         # Hybrid's sharing itself: choosing the blocks, their levels, the copies
-        out["share_ms"] = max(s.ms_cut - out["walk_ms"] - out["raster_ms"], 0.0)
+        out["share_ms"] = max(s.ms_cut - out["walk_ms"] - out["raster_ms"], 0.0) + chosen
         out["walk_over_floor"] = (out["walk_ms"] / out["floor_ms"] if out["floor_ms"] > 0
                                   else float("nan"))
         out["walk_visits_per_receiver"] = float(walks.nodes_visited)
@@ -126,8 +135,10 @@ def run(args) -> list[dict]:
     from app.material import Material
     from app.pbgi.lobe import LOBE_TUNINGS, tuning_name
     from app.pbgi.renderer import RenderParams
+    from app.render.context import is_software_renderer
     args.microbuffer = int(param_values(args, "bench profile")["pbgi.microbuffer"])
     r, rw = setup(args.points), setup(args.points)
+    floor = is_software_renderer(r.ctx.info.get("GL_RENDERER", ""))
     rw.walks_only = True                          # the walks alone (module docstring)
     if args.lobe_tuning != "auto":
         r.lobe_tuning = rw.lobe_tuning = LOBE_TUNINGS[args.lobe_tuning]
@@ -155,10 +166,14 @@ def run(args) -> list[dict]:
     records = [record("profile", {"mode": mode, "material": name, "viewport": args.viewport,
                                   "microbuffer": args.microbuffer, "view": args.view,
                                   "lobe_tuning": tuning},
-                      parts(best[(mode, name, False)], best[(mode, name, True)]))
+                      parts(best[(mode, name, False)], best[(mode, name, True)], floor))
                for name in mats for mode in args.modes]
     print(markdown(records))
     return records
+
+
+def _num(v: float) -> str:
+    return "-" if v != v else f"{v:.1f}"        # NaN: no floor on this renderer
 
 
 def markdown(records: list[dict]) -> str:
@@ -178,14 +193,15 @@ def markdown(records: list[dict]) -> str:
         if "far_walk_ms" in m:
             walk += f" [far {m['far_walk_ms']:.0f}, near {m['near_walk_ms']:.0f}]"
             raster += f" [far {m['far_raster_ms']:.0f}, near {m['near_raster_ms']:.0f}]"
-            share += f" [copies {m['merge_ms']:.0f}, levels {m['levels_ms']:.0f}]"
+            share += (f" [choice {m['choose_ms']:.0f}, copies {m['merge_ms']:.0f}, "
+                      f"levels {m['levels_ms']:.0f}]")
         lines.append(f"| {c['mode']} | {c['material']} | {m['ms']:.0f} | {pct('gbuffer_ms')} | "
                      f"{walk} | {raster} | {share} | {pct('lobe_walk_ms')} | "
                      f"{pct('lobe_cast_ms')} | "
                      f"{pct('gather_ms')} | {pct('other_ms')} | "
                      f"{m['visits_per_receiver']:.0f} | {m['tests_per_receiver']:.0f} | "
                      f"{m['lobe_visits_per_receiver']:.0f}, {m['lobe_tests_per_receiver']:.0f} | "
-                     f"{m['floor_ms']:.1f} | {m['walk_over_floor']:.1f} |")
+                     f"{_num(m['floor_ms'])} | {_num(m['walk_over_floor'])} |")
     if noisy:
         lines.append("\n(!) the walks-only render took longer than the whole one: the machine's "
                      "noise or a first render at this size; a larger --repeat settles it.")

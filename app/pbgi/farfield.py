@@ -327,8 +327,8 @@ def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[in
     """The block grid's offset (dx, dy) for a pass, each in [0, 2^max_level): the pass's point
     of the R2 sequence, (0, 0) for pass 0 - well spread over the passes, the same for every
     batch and tile of a pass and for the same scene anywhere (a render is repeatable, and
-    moving the whole scene by a million metres does not move its blocks). The mean of passes then has its block edges in
-    different places and averages the steps away."""
+    moving the whole scene by a million metres does not move its blocks). The mean of passes
+    then has its block edges in different places and averages the steps away."""
     side = 1 << int(max_level)
     u, v = r2_point(int(pass_index))
     return int(u * side), int(v * side)
@@ -348,6 +348,7 @@ class _Group:
     normal: np.ndarray                # (count, 3) the receivers' normals
     ms: float                         # seconds choosing them (reported by the first batch)
     _pairs: tuple | None = None
+    before_cut: bool = False          # chosen in begin_group: outside the cut's timer
     ratio: np.ndarray = field(init=False)   # (B, 3) the walked blocks' E_b / E_env (remember)
     ok: np.ndarray = field(init=False)      # (B,) their far walk completed, irradiances > 0
     known: np.ndarray = field(init=False)   # (B,) walked by an earlier batch of the group
@@ -525,6 +526,7 @@ class FarFieldShare(CutFinder):
         layer = frame.layer
         if layer is None:
             self._choose(frame.receivers, first, count, m, frame.tile[2], frame.pass_index)
+            self._group.before_cut = True
             return
         rows = layer.rows[first:first + count]
         tag, members = layer.group_of(rows)
@@ -536,6 +538,7 @@ class FarFieldShare(CutFinder):
             rec = layer.receivers[members]
             self._group = g = self._new_group(key, rec, m, layer.width, frame.pass_index,
                                               t0)
+            g.before_cut = True
         self._span = (first, grow)
 
     def _choose(self, receivers, first: int, count: int, m: int, width: int,
@@ -572,6 +575,7 @@ class FarFieldShare(CutFinder):
             self._choose(receivers, first, count, m, width, batch.pass_index)
             g, grp = self._group, self._span[1]
         t_choose, g.ms = g.ms, 0.0            # counted once, in the group's first batch
+        t_before = t_choose if g.before_cut else 0.0
         levelled = (len(g.blocks["ball"]) >= LEVEL_MIN_BLOCKS and self.level_fit
                     and batch.environment is not None and batch.gather is not None)
         blocks, ids, fit, nc = g.batch_blocks(grp, levelled)
@@ -699,7 +703,8 @@ class FarFieldShare(CutFinder):
             share=ShareFigures(
                 share_blocks=nb - nc, share_chunks=chunks, share_receivers=int(has.sum()),
                 share_block_visits=int(far_visited[:nb].sum()),
-                ms_share_blocks=(t1 - t0 + t_choose) * 1e3, ms_share_far=(t2 - t1 - t_lv) * 1e3,
+                ms_share_blocks=(t1 - t0 + t_choose) * 1e3,
+                ms_share_chosen_before=t_before * 1e3, ms_share_far=(t2 - t1 - t_lv) * 1e3,
                 ms_share_merge=self._merge_s * 1e3,
                 ms_share_levels=(t_lv + t_levels - t2) * 1e3, ms_share_near=(t3 - t_levels) * 1e3,
                 share_levelled=int(((levels != 1.0).any(1) & (blocks["last"] >= 0)).sum()),

@@ -83,6 +83,8 @@ class ShareFigures(Figures):
     share_receivers: int = 0          # receivers that took a block's far field
     share_block_visits: int = 0       # nodes the far-field walks visited, all blocks
     ms_share_blocks: float = 0.0      # choosing the blocks (CPU)
+    ms_share_chosen_before: float = 0.0   # of ms_share_blocks: chosen before the cut's timer
+                                      # started (CutFinder.begin_group: in ms, not in ms_cut)
     ms_share_far: float = 0.0         # the far-field walks and copies
     ms_share_merge: float = 0.0       # of ms_share_far: the copies into the receivers' rows
     ms_share_near: float = 0.0        # the per-receiver near-field walks

@@ -4,6 +4,7 @@ bounds and the completed flags (app/pbgi/gmip.py, mipmapped.py, hybrid.py)."""
 from __future__ import annotations
 
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -434,6 +435,9 @@ def test_profile_splits_each_frame_into_its_parts(capsys):
         if rec["case"]["mode"] == "hybrid":
             assert "far_ms" in m and "near_ms" in m
             assert 0 < m["merge_ms"] <= m["far_ms"]
+            # the blocks were chosen before the cut's timer: in the sharing, not in "other"
+            assert 0 < m["choose_ms"] <= m["share_ms"]
+            assert parts + m["choose_ms"] + m["other_ms"] == pytest.approx(m["ms"], rel=1e-6)
             assert m["walk_ms"] == pytest.approx(m["far_walk_ms"] + m["near_walk_ms"])
             assert m["raster_ms"] == pytest.approx(m["far_raster_ms"] + m["near_raster_ms"])
         else:
@@ -449,7 +453,20 @@ def test_profile_splits_each_frame_into_its_parts(capsys):
         assert m["walk_lobe_visits_per_receiver"] == pytest.approx(
             m["lobe_visits_per_receiver"], rel=1e-9)
     out = capsys.readouterr().out
-    assert out.count("| classic |") == 2 and "walk / floor" in out
+    assert out.count("| classic |") == 2 and "walk / floor" in out and "[choice " in out
+    # the floor is llvmpipe's rate: another renderer (a GPU) has none, and the table says so
+    classic = next(r for r in records if r["case"]["mode"] == "classic")
+    stats = SimpleNamespace(**{k: 0.0 for k in ("ms", "ms_gbuffer", "ms_cut", "ms_lobe",
+                                                "ms_gather", "lobe_visited", "lobe_tests")},
+                            share=None, receivers=classic["metrics"]["receivers"],
+                            nodes_visited=classic["metrics"]["visits_per_receiver"],
+                            splat_tests=1.0)
+    gpu = profile.parts(stats, stats, floor=False)
+    assert gpu["floor_ms"] != gpu["floor_ms"] and gpu["walk_over_floor"] != gpu["walk_over_floor"]
+    assert profile.parts(stats, stats)["floor_ms"] == pytest.approx(
+        classic["metrics"]["floor_ms"])
+    row = profile.markdown([{"case": classic["case"], "metrics": {**classic["metrics"], **gpu}}])
+    assert row.splitlines()[-1].endswith("| - | - |")
 
 
 def test_profile_records_the_lobe_tuning_it_ran():

@@ -212,6 +212,24 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)
 
 
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Row lengths of v (n, 3), without np.linalg.norm's generic reduction."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
+def _groups(key: np.ndarray, span: int):
+    """np.unique(key, return_inverse=True, return_counts=True) for keys in [0, span), by a
+    count per possible key instead of a sort: the keys here are squares of the image, so span
+    is about the receivers' number, and the sort was most of choose_blocks' time."""
+    if span > 8 * len(key) + 4096:       # sparse: the sort is cheaper than the table
+        return np.unique(key, return_inverse=True, return_counts=True)
+    counts = np.bincount(key, minlength=span)
+    present = np.flatnonzero(counts)
+    slot = np.zeros(span, np.int64)
+    slot[present] = np.arange(len(present))
+    return present, slot[key], counts[present]
+
+
 def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray, width: int,
                   m: int, tolerance: float, max_level: int = DEFAULT_MAX_LEVEL,
                   max_cone: float = DEFAULT_MAX_CONE, min_block: int = MIN_BLOCK,
@@ -253,15 +271,17 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     # stays where it was, and no coordinate of a dithered pixel x - j .. x + j is negative)
     reach = (1 << max_level) if dither else 0       # a whole block: the grid stays aligned
     x, y, stride = x + reach, y + reach, stride + 2 * reach
+    rows = int(y.max()) + 1
+    spans = [((rows - 1 >> level) + 1) * stride for level in range(max_level + 1)]
     for level in range(1, max_level + 1):
         key = (y >> level) * stride + (x >> level)
-        uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+        uniq, inv, cnt = _groups(key, spans[level])
         k = len(uniq)
         a = _unit(_sum3(inv, nrm, k))
-        cos = np.einsum("ij,ij->i", nrm, a[inv])
-        half = np.zeros(k)
-        np.maximum.at(half, inv, np.arccos(np.clip(cos, -1.0, 1.0)))
-        ok = (half <= max_cone) & (cnt >= min_block)
+        # the widest normal's angle from the axis: the least cosine (arccos is decreasing)
+        least = np.ones(k)
+        np.minimum.at(least, inv, np.einsum("ij,ij->i", nrm, a[inv]))
+        ok = (least >= np.cos(max_cone)) & (cnt >= min_block)
         take = ok[inv]
         chosen_level[take] = level
         chosen_key[take] = key[take]
@@ -275,25 +295,29 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
         xl = x[at] - jd + ((h[at] >> 3 * level) % (2 * jd + 1)).astype(np.int64)
         yl = y[at] - jd + ((h[at] >> (3 * level + 12)) % (2 * jd + 1)).astype(np.int64)
         dk = (yl >> level) * stride + (xl >> level)
-        keys, kinv = np.unique(chosen_key[at], return_inverse=True)
+        keys, kinv, _ = _groups(chosen_key[at], spans[level])
         nk = len(keys)
         ax = _unit(_sum3(kinv, nrm[at], nk))
         ce = _sum3(kinv, p[at], nk) / np.bincount(kinv, minlength=nk)[:, None]
         rk = np.zeros(nk)
-        np.maximum.at(rk, kinv, np.linalg.norm(p[at] - ce[kinv], axis=1))
+        np.maximum.at(rk, kinv, _norm(p[at] - ce[kinv]))
         slot = np.minimum(np.searchsorted(keys, dk), nk - 1)
         move = ((dk != chosen_key[at]) & (keys[slot] == dk)       # a block of this level,
                 & (np.einsum("ij,ij->i", nrm[at], ax[slot]) >= np.cos(max_cone))   # in its cone
-                & (np.linalg.norm(p[at] - ce[slot], axis=1) <= GUEST_REACH * rk[slot]))
+                & (_norm(p[at] - ce[slot]) <= GUEST_REACH * rk[slot]))
         chosen_key[at[move]] = dk[move]
         guest[at[move]] = True
     shared = chosen_key >= 0
     if not shared.any():
         return empty
     # blocks numbered in the order of their first receiver
-    code = chosen_level * (1 << 40) + chosen_key
+    # a block's code: its key among its level's squares, the levels one after another
+    base = np.concatenate([[0], np.cumsum(spans)])
+    code = base[chosen_level] + chosen_key
     idx = np.flatnonzero(shared)
-    _, first_pos, inv = np.unique(code[idx], return_index=True, return_inverse=True)
+    _, inv, _ = _groups(code[idx], int(base[-1]))
+    first_pos = np.full(int(inv.max()) + 1, len(idx), np.int64)
+    np.minimum.at(first_pos, inv, np.arange(len(idx)))
     order = np.argsort(idx[first_pos], kind="stable")
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
@@ -307,7 +331,7 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     # the far field up to GUEST_REACH x the parallax tolerance off, but the ball, hence the near
     # field every receiver walks, stays that of a square block (with the guests: 1.35x the frame)
     rho = np.zeros(nb)
-    dist = np.linalg.norm(p[idx] - c[bid], axis=1)
+    dist = _norm(p[idx] - c[bid])
     np.maximum.at(rho, bid, np.where(guest[idx], 0.0, dist))
     lone = rho <= 0.0                   # only guests: their own extent
     if lone.any():

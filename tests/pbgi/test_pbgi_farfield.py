@@ -60,6 +60,39 @@ def test_blocks_are_aligned_z_runs_with_narrow_cones_and_parallax_balls():
     assert (choose_blocks(px, pos, nrm, w, m, 0.0, 3)["block_of"] == NONE).all()
 
 
+@pytest.mark.parametrize("n,span", [(5000, 3000), (5000, 70000), (1, 1), (2000, 10**9)])
+def test_grouping_by_a_count_table_is_numpys_unique(n, span):
+    """choose_blocks groups receivers by grid square with a count per possible key (farfield:
+    _groups) instead of np.unique's sort: the same sorted keys, inverse and counts, dense keys
+    (the image's squares) and sparse ones (the sort's fallback) alike."""
+    from app.pbgi.farfield import _groups
+    key = np.random.default_rng(n + span).integers(0, span, n)
+    for got, want in zip(_groups(key, span), np.unique(key, return_inverse=True,
+                                                       return_counts=True)):
+        assert np.array_equal(got, want)
+
+
+def test_blocks_of_a_dithered_shifted_grid_cover_each_receiver_once():
+    """With a grid offset and the dither (every pass of the viewer) each receiver is in at most
+    one block, blocks are numbered in the order of their first receiver, and a block's centre
+    is the mean of its receivers: the bookkeeping the count-table grouping replaced."""
+    w = h = 64
+    px, pos, nrm = _grid_receivers(w, h)
+    b = choose_blocks(px, pos, nrm, w, 24, 1.0, max_level=3, max_cone=0.1, offset=(3, 5),
+                      dither=True)
+    of = b["block_of"]
+    nb = len(b["ball"])
+    assert nb > 10 and (of != NONE).mean() > 0.5
+    has = np.flatnonzero(of != NONE)
+    first = np.full(nb, len(px))
+    np.minimum.at(first, of[has].astype(np.int64), has)
+    assert np.array_equal(first, b["first"])
+    assert (np.diff(b["first"]) > 0).all()                 # numbered by first receiver
+    assert np.array_equal(np.bincount(of[has].astype(np.int64), minlength=nb), b["size"])
+    for j in (0, nb // 2, nb - 1):
+        assert np.allclose(pos[of == j].mean(0), b["centre"][j])
+
+
 def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     """Constant radiance all around: a node lost between the far walk of a block and the near
     walks of its receivers would leave a dark hole. Per pixel, Hybrid with sharing stays within

@@ -18,10 +18,10 @@ time budget:
    strip length come from the measured cost per pixel so each frame stays near the budget (at
    least one cell per frame, so refinement always advances). Cells not yet rendered keep
    showing the upsampled preview. On a CPU rasteriser the cost keeps cells at 8-32 px; on a GPU
-   a pixel costs 1-3 us and cells grow to 64-128 px: a 64 px cell (4096 receivers) neither
-   fills a GPU nor pays for a render call's set-up (the orbit measured with a cap of 64 and of
-   256 px in the README, "On a GPU again"). ``progress`` tells the UI how far it got, ``status_words``
-   says it in words with the time left.
+   a pixel costs 2-4 us and cells grow to 64-128 px: a 64 px cell (4096 receivers) neither
+   fills a GPU nor pays for a render call's set-up (the orbit measured with caps of 64 to 512
+   px: README, "On a GPU, a third session"). ``progress`` tells the UI how far it got,
+   ``status_words`` says it in words with the time left.
 
 The time left: the GI render is only part of a frame (the room, the composite, imgui and the
 window's own waiting take the rest), so the estimate comes from the wall-clock time between the

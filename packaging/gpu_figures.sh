@@ -92,7 +92,8 @@ require=430); print(c.info['GL_RENDERER'], c.info['GL_VERSION'])" | tee "$OUT/re
         --json "$OUT/table3.json" > "$OUT/table3.log" 2>&1
     stamp "table3 $?"
     for vp in $vps; do for t in auto software; do
-        "${b[@]}" profile --viewport $vp --microbuffer 16 --modes classic,hybrid \
+        local pm=16; [ "$vp" -ge 512 ] && pm=24     # the README tables: 128 / 16, 512 / 24
+        "${b[@]}" profile --viewport $vp --microbuffer $pm --modes classic,hybrid \
             --lobe-tuning $t --json "$OUT/profile_${vp}_$t.json" > "$OUT/profile_${vp}_$t.log" 2>&1
         stamp "profile $vp $t $?"
     done; done

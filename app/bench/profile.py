@@ -23,9 +23,9 @@ with the real one. Its cut and lobe times are the walks' (``walk``, ``lobe_walk`
 ``far_walk`` / ``near_walk``), and the rest of the real render's is the rasterisation
 (``raster``; ``far_raster`` / ``near_raster``) and the lobe's ray casts (``lobe_cast``):
 differences of two fastest-of-n timings, so noisy to a few ms, and clamped at zero. Hybrid's
-cut also holds the sharing itself (``share``: choosing the blocks, their levels, and copying
-each block's micro-buffer into its receivers', ``merge``, timed apart by the far field), which
-is neither walk nor raster.
+cut also holds the sharing itself (``share``: the blocks' levels, and copying each block's
+micro-buffer into its receivers', ``merge``, timed apart by the far field), which is neither
+walk nor raster; ``share`` adds the blocks' choice (``choose``), made before the cut.
 
 Node visits and micro-buffer entry tests per receiver are the walks' own counts (means; the
 lobe walk's separately, over all receivers). ``floor_ms`` is

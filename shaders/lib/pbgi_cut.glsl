@@ -180,7 +180,7 @@ MbCap cut_cap(MbNode nd, vec3 T, vec3 B, vec3 N) { return mb_cap(nd.dv, nd.d2, n
 // them), and the cap makes that set-up dear. Returns the iterations done; ``k_out`` = the first
 // node not finished (count when all are done: anything less means the driver cut the loop
 // short).
-// CUT_WALK_ONLY (app/pbgi/modebase.py: WALK_ONLY, `bench profile`): no node is rasterised, so
+// CUT_WALK_ONLY (app/pbgi/gpu_layout.py: WALK_ONLY, `bench profile`): no node is rasterised, so
 // a render times its walks alone and the profile can tell the walk from the rasterisation
 // (the micro-buffers stay empty: the image of such a render means nothing).
 uint cut_raster(uint count, vec3 p, vec3 N, vec3 T, vec3 B, uint receiver, int m,

@@ -353,7 +353,7 @@ class Relighter:
             if held is not None:
                 held.release()
             held = self.modes[params.mode] = create_mode(
-                params.mode, self.ctx, params, defines=WALK_ONLY if self._walks_only else None)
+                params.mode, self.ctx, params, defines=self._walk_defines)
         return held
 
     def forget_microbuffers(self) -> None:
@@ -520,7 +520,7 @@ class Relighter:
                            seed_tile=(x0, y0, w, W))
             if self._lobe is None:
                 self._lobe = LobeBuffers(ctx, self.lobe_tuning,
-                                         defines=WALK_ONLY if self._walks_only else None)
+                                         defines=self._walk_defines)
             stats.lobe_receivers = True
         stats.absent_features = absent_features(materials) if params.shader_variants else ()
         try:
@@ -609,6 +609,11 @@ class Relighter:
             self._lobe.release()
             self._lobe = None
         self.forget_microbuffers()
+
+    @property
+    def _walk_defines(self):
+        """What every walk program is compiled with: WALK_ONLY under ``walks_only``."""
+        return WALK_ONLY if self._walks_only else None
 
     @property
     def lobe_buffers(self):

@@ -62,24 +62,58 @@ uniform float u_env_texel_omega;   // solid angle of one cube-map texel at a fac
 #else
 // The asset's glossy bounce (app/pbgi/asset_scene.py, app/pbgi/nodetex.py: set_directional):
 // the asset's nodes from `first` on send L(d) = colour + G d towards unit direction d (here -w,
-// from the node to the receiver), G's columns at texels 1 + 3 j + c of asset node j; texel 0
+// from the node to the receiver), G's columns at texels 1 + 4 j + c of asset node j; texel 0
 // holds (first / 65536, first % 65536, count) - a first no node reaches when the bounce is
 // diffuse or there is none.
 // Compiled in only when the tree has such nodes (ASSET_DIRECTIONAL, app/pbgi/gather.py): the
 // untaken test and its look-ups cost llvmpipe's gather 2.8x otherwise (demo close-up, 19 -> 55
 // ms for a room without them).
 layout(binding = TEX_ASSET_DIR) uniform sampler2D u_asset_dir;
+#ifdef ASSET_MIRROR
+// The mirror bounce of a smooth metal (asset_scene.py: mirror_params), where a plane in d cannot
+// hold the sharp reflection: the room's light from the mirror direction about the node's normal
+// (its cone axis), seen from the asset's centre (u_asset_env: distant light, as the
+// environment-map baseline) and prefiltered to the lobe's solid angle 4 pi alpha^2 by the cube
+// map's mip level, times the metal's directional albedo F0 S + B (u_metal_albedo: the split sum).
+// Mixed into the plane by the node's weight (texel 1 + 4 j + 3's alpha) times its cone's
+// tightness: a node whose normals spread wide (a cube's edge, both faces of a thin plate) has
+// no one mirror direction and keeps the plane (mirrored about its axis anyway, a hot pixel 2x
+// the path tracer's brightest came up on the blocks in the city). The roughness is the alpha
+// of texel 1 + 4 j, F0 the rgb of texel 1 + 4 j + 3.
+layout(binding = TEX_ASSET_ENV) uniform samplerCube u_asset_env;
+layout(binding = TEX_METAL_ALBEDO) uniform sampler2D u_metal_albedo;
+uniform float u_asset_env_texel_omega;   // solid angle of one cube-map texel at a face centre
+#define MIRROR_CONE_COS vec2(0.7, 0.95)  // cone cosines: the plane alone .. the mirror alone
+
+vec3 asset_mirror(vec3 n, vec3 o, vec3 f0, float rough) {
+    float mu = dot(n, o);
+    if (mu <= 0.0) return vec3(0.0);
+    vec3 r = 2.0 * mu * n - o;
+    float alpha = max(rough * rough, 1e-3);
+    float lod = 0.5 * log2(max(4.0 * PI * alpha * alpha / u_asset_env_texel_omega, 1.0));
+    vec2 sb = texture(u_metal_albedo, vec2(min(mu, 1.0), rough)).rg;
+    return textureLod(u_asset_env, r, lod).rgb * (f0 * sb.x + sb.y);
+}
+#endif
 vec3 node_radiance(uint node, vec3 w, uint first, int width) {
     vec3 L = tnode_color(node);
 #ifndef ASSET_DIRECTIONAL
     return L;
 #endif
     if (node < first) return L;
-    int t = 1 + 3 * int(node - first);
-    vec3 gx = texelFetch(u_asset_dir, ivec2(t % width, t / width), 0).rgb;
+    int t = 1 + 4 * int(node - first);
+    vec4 gx = texelFetch(u_asset_dir, ivec2(t % width, t / width), 0);
     vec3 gy = texelFetch(u_asset_dir, ivec2((t + 1) % width, (t + 1) / width), 0).rgb;
     vec3 gz = texelFetch(u_asset_dir, ivec2((t + 2) % width, (t + 2) / width), 0).rgb;
-    return max(L - (gx * w.x + gy * w.y + gz * w.z), vec3(0.0));
+    L = max(L - (gx.rgb * w.x + gy * w.y + gz * w.z), vec3(0.0));
+#ifdef ASSET_MIRROR
+    vec4 f0w = texelFetch(u_asset_dir, ivec2((t + 3) % width, (t + 3) / width), 0);
+    BshCone cone = tnode_cone(node);
+    float weight = f0w.a * clamp((cone.cos_angle - MIRROR_CONE_COS.x)
+                                 / (MIRROR_CONE_COS.y - MIRROR_CONE_COS.x), 0.0, 1.0);
+    if (weight > 0.0) L = mix(L, asset_mirror(cone.axis, -w, f0w.rgb, gx.a), weight);
+#endif
+    return L;
 }
 #endif
 

@@ -29,7 +29,8 @@ import numpy as np
 ROOMS = {"apartment": "../shared/data/apartment.exr",     # tuning room
          "city": "../shared/data/city.exr"}               # held out
 ASSETS = ("blocks", "sphere")
-KINDS = ("diffuse", "rough_metal")
+KINDS = ("diffuse", "rough_metal", "glossy_metal", "mirror_metal")
+CONVEX_KINDS = ("diffuse",)       # the sphere cannot light itself: its other kinds add nothing
 SIZE = 96
 MAX_DEPTH = 3
 CATCHER_ALBEDO = 0.5
@@ -44,6 +45,10 @@ def material(kind: str):
         return Material(base_color=(0.7, 0.7, 0.7), metallic=0.0, roughness=1.0, specular=0.0)
     if kind == "rough_metal":
         return Material(base_color=(0.95, 0.64, 0.37), metallic=1.0, roughness=0.6)
+    if kind == "glossy_metal":       # the plane and the mirror bounce mixed (asset_scene.py)
+        return Material(base_color=(0.95, 0.64, 0.37), metallic=1.0, roughness=0.25)
+    if kind == "mirror_metal":       # the mirror bounce alone
+        return Material(base_color=(0.97, 0.96, 0.92), metallic=1.0, roughness=0.05)
     raise ValueError(f"unknown material kind {kind!r}")
 
 

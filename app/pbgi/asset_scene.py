@@ -19,6 +19,14 @@ itself) and the asset's shadow and bounce on the scan (differential rendering).
   metal's outgoing radiance is smooth in the direction, a plane holds it (in the white furnace
   within 3-6% of its directional albedo, which is a quarter below the base colour the diffuse
   bounce used); it depends on the material, so a material edit gathers again;
+* the mirror bounce, for a smooth metal (``mirror_params``): its reflection is too sharp for a
+  plane fitted to 24 views, each point-sampling a narrow lobe in a 16 x 16 micro-buffer (in the
+  furnace they read 0.002 or 3,740 where the silver sends 0.95: hot pixels and black specks on a
+  silver bunny). So the gather evaluates such a node towards each receiver as the room's light
+  from the mirror direction about its normal, from a cube map of the scan seen from the asset's
+  centre (``environment``, built once per placement), prefiltered to the lobe and times the
+  metal's directional albedo (shaders/pbgi_gather.glsl: asset_mirror); mixed into the plane
+  between MIRROR_ROUGHNESS's two roughnesses, which the blocks against the path tracer chose;
 * the node textures the modes walk (colours of the latest bounce);
 * the differential: the scan's points within ``REACH`` asset radii of the asset's bounding
   sphere are gathered without the asset (the room's tree) and with it (the joined tree, bounce
@@ -35,7 +43,8 @@ itself) and the asset's shadow and bounce on the scan (differential rendering).
 
 What it does not model: the scan's points are not re-gathered for the asset's own receivers
 (the room's tree keeps the scanned colours, so the shadow on the floor is not seen in the
-asset's reflection of the floor), and the room's light does not bounce twice.
+asset's reflection of the floor), the room's light does not bounce twice, and the mirror
+bounce's room has no parallax and no asset in it.
 """
 
 from __future__ import annotations
@@ -47,8 +56,8 @@ import numpy as np
 
 from app.pbgi.nodetex import NodeTextures
 from app.pbgi.point_gather import PointGather
-from app.pbgi.scene_tree import (SceneTree, asset_gradients, asset_hierarchy, join,
-                                 recolor_asset)
+from app.pbgi.scene_tree import (SceneTree, asset_gradients, asset_hierarchy, asset_mirror,
+                                 join, recolor_asset)
 from app.pbgi.surfels import Surfels, sample_surfels, surfel_albedo, surfel_materials
 
 REACH = 2.0          # the differential's region: points within (1 + REACH) x the asset radius
@@ -58,6 +67,8 @@ BOUNCE_SAMPLES = 2048  # the bounce gathers at most this many surfels and interp
 NEIGHBOURS = 12      # the interpolation's samples per point
 VIEWS = 24           # the glossy bounce: far cameras (a Fibonacci sphere) each surfel is seen from
 MIN_VIEW_COS = 0.05  # ... those more than this above its horizon fit its L(d) = colour + G d
+MIRROR_ROUGHNESS = (0.2, 0.35)  # the mirror bounce alone below the first, the plane above the
+                     # second, mixed linearly between (a metal's share: ``mirror_params``)
 
 
 @dataclass
@@ -114,6 +125,23 @@ def fit_directional(directions: np.ndarray, normals: np.ndarray, radiance: np.nd
     return c[:, 0, :].astype(np.float32), c[:, 1:, :].transpose(0, 2, 1).astype(np.float32)
 
 
+def mirror_params(surfels: Surfels, mesh, materials) -> np.ndarray | None:
+    """(n, 5) float32 per surfel: F0 (its base colour), roughness and the weight of the mirror
+    bounce (module docstring) - metallic x 1 below MIRROR_ROUGHNESS[0], falling linearly to 0 at
+    MIRROR_ROUGHNESS[1]; None when no surfel has any."""
+    mats, index = surfel_materials(surfels, mesh, materials)
+    rough = np.array([float(m.roughness) for m in mats], np.float64)[index]
+    metal = np.array([float(m.metallic) for m in mats], np.float64)[index]
+    lo, hi = MIRROR_ROUGHNESS
+    weight = np.clip(metal, 0.0, 1.0) * np.clip((hi - rough) / (hi - lo), 0.0, 1.0)
+    if not (weight > 0.0).any():
+        return None
+    out = np.zeros((len(surfels), 5), np.float32)
+    out[:, :3] = surfel_albedo(surfels, mesh, materials)
+    out[:, 3], out[:, 4] = rough, weight
+    return out
+
+
 def _bounce_key(tree_key, bounces: int, albedo: np.ndarray, materials) -> tuple:
     """What a bounce depends on: the tree, the bounce count, the surfels' albedo and, for the
     glossy bounce, every material parameter (its lobe, not only its colour)."""
@@ -157,9 +185,13 @@ def _interpolate(positions, normals, sample: np.ndarray, index: np.ndarray,
 
 
 class AssetScene:
-    def __init__(self, ctx, gather):
+    def __init__(self, ctx, gather, environment=None):
+        """``environment``: () -> a new EnvironmentMap of the room seen from the asset's
+        centre (the Relighter's), for the mirror bounce; None: no mirror bounce."""
         self.ctx = ctx
         self.points = PointGather(ctx, gather)
+        self.environment = environment
+        self._env = None          # (tree key, EnvironmentMap) of the mirror bounce
         self._surfels = None      # (key, Surfels)
         self._tree = None         # (key, SceneTree) uncoloured
         self._bounce = None       # (key, per-surfel radiance)
@@ -196,14 +228,16 @@ class AssetScene:
             return self._bounce[1]
         rad = np.zeros((len(surfels), 3), np.float32)
         grads = None
+        mirror = mirror_params(surfels, mesh, materials) if shiny else None
         every = np.arange(len(surfels))
         sample = _evenly(every, BOUNCE_SAMPLES)
         rel = surfels.positions[sample] - room.origin
         offset = 0.25 * surfels.radius
         for b in range(int(bounces)):
             if shiny:
-                _, tex, _ = self._textures((tree_key, rad.tobytes(), _bytes(grads)), tree, rad,
-                                           grads)
+                _, tex, _ = self._textures((tree_key, rad.tobytes(), _bytes(grads),
+                                            _bytes(mirror) if b else None), tree, rad, grads,
+                                           mirror if b else None)
                 mats, index = surfel_materials(surfels, mesh, materials)
                 dirs = view_directions()
                 seen = self.points.views(rel, surfels.normals[sample], tex, room.cell_size,
@@ -227,7 +261,19 @@ class AssetScene:
         self._bounce = (key, (rad, grads))
         return rad, grads
 
-    def _textures(self, key, tree: SceneTree, radiance: np.ndarray, gradients=None):
+    def _mirror_environment(self, tree_key):
+        """The room seen from the asset's centre, kept per tree (the room and the placement)."""
+        if self.environment is None:
+            return None
+        if self._env is None or self._env[0] != tree_key:
+            if self._env is not None:
+                self._env[1].release()
+            self._env = None
+            self._env = (tree_key, self.environment())
+        return self._env[1]
+
+    def _textures(self, key, tree: SceneTree, radiance: np.ndarray, gradients=None,
+                  mirror=None):
         if self._upload is None or self._upload[0] != key:
             if self._upload is not None:
                 self._upload[1].release()
@@ -237,7 +283,9 @@ class AssetScene:
             tex = NodeTextures(self.ctx, buf, len(coloured))
             tex.asset_first, tex.surfel_area = tree.asset_first, tree.surfel_area
             if gradients is not None:
-                tex.set_directional(asset_gradients(tree, gradients), tree.asset_first)
+                env = None if mirror is None else self._mirror_environment(key[0])
+                tex.set_directional(asset_gradients(tree, gradients), tree.asset_first,
+                                    None if env is None else asset_mirror(tree, mirror), env)
             self._upload = (key, buf, tex, coloured)
         return self._upload[1], self._upload[2], self._upload[3]
 
@@ -266,8 +314,9 @@ class AssetScene:
         surfels = self.surfels(mesh, asset_version, count)
         rad, grads = self.radiance(tree_key, tree, room, mesh, materials, surfels,
                                    int(params.asset_bounces))
-        _, tex, coloured = self._textures((tree_key, rad.tobytes(), _bytes(grads)), tree, rad,
-                                          grads)
+        mirror = None if grads is None else mirror_params(surfels, mesh, materials)
+        _, tex, coloured = self._textures((tree_key, rad.tobytes(), _bytes(grads),
+                                           _bytes(mirror)), tree, rad, grads, mirror)
         self.seconds = time.perf_counter() - t0
         return SceneNodes(tex, len(tree), tree.asset_first, ("asset",) + tree_key,
                           coloured.nodes)
@@ -351,6 +400,9 @@ class AssetScene:
 
     def release(self) -> None:
         self.points.release()
+        if self._env is not None:
+            self._env[1].release()
+        self._env = None
         if self._upload is not None:
             self._upload[1].release()
             self._upload[2].release()

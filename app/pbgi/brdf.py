@@ -315,3 +315,50 @@ def directional_albedo(params, V, n_samples: int = 4096, seed: int = 0, lobes=LO
         v_k = dev2.sum(axis=-2) / np.maximum(cnt - 1, 1)
         var += np.where(cnt > 1, (cnt / n_samples) ** 2 * v_k / np.maximum(cnt, 1), 0.0)
     return mean, np.sqrt(var)
+
+
+METAL_ALBEDO_SIZE = 16     # metal_albedo_table: roughness rows x cos(theta) columns
+
+
+def metal_albedo_table(size: int = METAL_ALBEDO_SIZE, lattice: int = 48) -> np.ndarray:
+    """(size, size, 2) float32 (S, B): a metal's directional albedo is F0 x S + B (Fresnel's
+    F0 + (1 - F0) Fh is linear in F0 = the base colour), per roughness row r = (i + 0.5) / size
+    and view cosine column mu = (j + 0.5) / size - texel centres, so a bilinear look-up at
+    (mu, r) interpolates it. The split-sum factor of the asset's mirror bounce
+    (shaders/pbgi_gather.glsl: node_radiance): reflected light = prefiltered incoming light x
+    this albedo. The integral is taken over GGX's visible normals (Heitz 2018) on a
+    ``lattice`` x ``lattice`` grid of cell centres: f cos / pdf is smooth and bounded there, so
+    a deterministic grid converges fast (``directional_albedo``'s Monte Carlo, mixing its
+    diffuse and clearcoat strategies in, needs far more samples for the same accuracy, which a
+    test checks). Cached per process."""
+    key = (int(size), int(lattice))
+    if key not in _METAL_ALBEDO:
+        t = (np.arange(size) + 0.5) / size
+        g = (np.arange(lattice) + 0.5) / lattice
+        u1, u2 = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+        out = np.zeros((size, size, 2), np.float64)
+        for i, r in enumerate(t):
+            a0 = np.zeros(size)
+            a1 = np.zeros(size)
+            for base, acc in ((0.0, a0), (1.0, a1)):
+                params = pack_params(base_color=(base, base, base), metallic=1.0,
+                                     roughness=float(r))
+                alpha = float(spec_alphas(params)[0])
+                V = np.stack([np.sqrt(1.0 - t * t), np.zeros(size), t], axis=1)[:, None, :]
+                H = _sample_ggx_vndf(V, alpha, alpha, u1[None], u2[None])     # (size, n, 3)
+                vh = np.sum(V * H, axis=-1)
+                L = 2.0 * vh[..., None] * H - V
+                ok = (L[..., 2] > 0) & (vh > 0)
+                f = _local_frame_brdf(params, L, np.broadcast_to(V, L.shape),
+                                      ("specular",))[..., 0]
+                d = _gtr2_aniso(H[..., 2], H[..., 0], H[..., 1], alpha, alpha)
+                g1 = 2.0 * t[:, None] * _smith_ggx(t[:, None], alpha)
+                pdf = d * g1 / (4.0 * t[:, None])
+                acc[:] = np.where(ok, f * np.maximum(L[..., 2], 0.0) / np.where(ok, pdf, 1.0),
+                                  0.0).mean(axis=1)
+            out[i, :, 0], out[i, :, 1] = a1 - a0, a0
+        _METAL_ALBEDO[key] = out.astype(np.float32)
+    return _METAL_ALBEDO[key]
+
+
+_METAL_ALBEDO: dict = {}

@@ -35,14 +35,16 @@ class Gather:
 
     def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False,
               irradiance: bool = False, absent: tuple = (), directional: bool = False,
-              parts: bool = False):
-        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional, parts)
+              parts: bool = False, mirror: bool = False):
+        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional, parts, mirror)
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
             if parts:
                 defines["GATHER_PARTS"] = 1
             if directional:
                 defines["ASSET_DIRECTIONAL"] = 1
+            if mirror:
+                defines["ASSET_MIRROR"] = 1
             if frames:
                 defines["FRAME_NORMALS"] = 1
             if lobe:
@@ -76,8 +78,12 @@ class Gather:
         if irradiance and parts is not None:
             raise ValueError("an irradiance gather has no BRDF to split into parts")
         directional = env is None and bool(getattr(nodes, "has_directional", False))
+        mirror = directional and bool(getattr(nodes, "has_mirror", False))
         prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
-                          () if irradiance else tuple(absent), directional, parts is not None)
+                          () if irradiance else tuple(absent), directional, parts is not None,
+                          mirror)
+        if mirror:
+            prog["u_asset_env_texel_omega"] = nodes.mirror_environment.texel_omega
         if parts is not None:
             parts.bind_to_storage_buffer(SSBO.PARTS)
         if lobe is not None:

@@ -62,6 +62,10 @@ TEXTURE = Units("texture units: layout(binding = TEX_X) uniform sampler, Texture
                                    "FRAME_NORMALS"),
                     "ASSET_DIR": (8, "the asset's glossy bounce: how its nodes' radiance varies "
                                      "with direction (app/pbgi/nodetex.py: directional)"),
+                    "ASSET_ENV": (9, "the asset's mirror bounce: the room seen from the asset's "
+                                     "centre (a cube map), the gather with ASSET_MIRROR"),
+                    "METAL_ALBEDO": (10, "the asset's mirror bounce: a metal's directional "
+                                        "albedo (app/pbgi/brdf.py: metal_albedo_table)"),
                 })
 IMAGE = Units("image units: layout(format, binding = IMG_X) uniform image, bind_to_image",
               "IMG_", {

@@ -50,26 +50,46 @@ class NodeTextures:
         self.asset_first = self.count
         self.surfel_area = 0.0
         self.directional = None
+        self.metal_albedo = None
         self.set_directional(None)
 
-    def set_directional(self, gradients, first: int = 0) -> None:
+    def set_directional(self, gradients, first: int = 0, mirror=None, environment=None) -> None:
         """The asset's glossy bounce (app/pbgi/asset_scene.py): its nodes from ``first`` on
         send L(d) = colour + G d towards unit direction d, ``gradients`` (k, 3, 3): per node
-        G's columns dL/dx, dL/dy, dL/dz (RGB each). The gather (shaders/pbgi_gather.glsl:
-        node_radiance) reads texel 0 = (first / 65536, first % 65536, k) - two halves, exact in
-        a float whatever the node count - and node first + j's columns at texels 1 + 3 j + c,
-        rows of WIDTH. None: every node's radiance is its colour (texel 0 holds a first no node
-        reaches, 2^32 - 1), and the gather runs its variant without the look-up."""
+        G's columns dL/dx, dL/dy, dL/dz (RGB each). ``mirror`` (k, 5) per node (F0 RGB,
+        roughness, weight) and ``environment`` (an EnvironmentMap of the room seen from the
+        asset's centre, not owned): the mirror bounce, mixed in by its weight (asset_scene.py:
+        mirror_params). The gather (shaders/pbgi_gather.glsl: node_radiance) reads texel 0 =
+        (first / 65536, first % 65536, k) - two halves, exact in a float whatever the node
+        count - and node first + j's texels 1 + 4 j + c, rows of WIDTH: c = 0, 1, 2 G's column
+        c (the first's alpha: the roughness), c = 3 (F0, weight). None: every node's radiance
+        is its colour (texel 0 holds a first no node reaches, 2^32 - 1), and the gather runs
+        its variant without the look-up."""
         import moderngl
         if self.directional is not None:
             self.directional.release()
         g = np.zeros((0, 3, 3), np.float32) if gradients is None else \
             np.asarray(gradients, np.float32).reshape(-1, 3, 3)
-        texels = np.zeros((1 + 3 * len(g), 4), np.float32)
+        texels = np.zeros((1 + 4 * len(g), 4), np.float32)
         self.has_directional = bool(len(g))     # the gather's ASSET_DIRECTIONAL variant
+        self.has_mirror = bool(len(g)) and mirror is not None and environment is not None
+        self.mirror_environment = environment if self.has_mirror else None
         first = int(first) if len(g) else (1 << 32) - 1
         texels[0, :3] = (float(first >> 16), float(first & 0xFFFF), float(len(g)))
-        texels[1:, :3] = g.transpose(0, 2, 1).reshape(-1, 3)   # texel 1 + 3 j + c: column c
+        node = texels[1:].reshape(-1, 4, 4)                      # (k, texel c, RGBA)
+        node[:, :3, :3] = g.transpose(0, 2, 1)                   # texel c: column c
+        if self.has_mirror:
+            mp = np.asarray(mirror, np.float32).reshape(-1, 5)
+            node[:, 0, 3] = mp[:, 3]
+            node[:, 3, :3], node[:, 3, 3] = mp[:, :3], mp[:, 4]
+            if self.metal_albedo is None:
+                from app.pbgi.brdf import metal_albedo_table
+                table = metal_albedo_table()
+                self.metal_albedo = self.ctx.texture(table.shape[1::-1], 2,
+                                                     np.ascontiguousarray(table).tobytes(),
+                                                     dtype="f4")
+                self.metal_albedo.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                self.metal_albedo.repeat_x = self.metal_albedo.repeat_y = False
         h = (len(texels) + WIDTH - 1) // WIDTH
         data = np.zeros((h * WIDTH, 4), np.float32)
         data[:len(texels)] = texels
@@ -90,6 +110,9 @@ class NodeTextures:
         for name, (_, unit, _) in TEXTURES.items():
             self.textures[name].use(location=unit)
         self.directional.use(location=TEXTURE.ASSET_DIR)
+        if self.has_mirror:
+            self.mirror_environment.texture.use(location=TEXTURE.ASSET_ENV)
+            self.metal_albedo.use(location=TEXTURE.METAL_ALBEDO)
 
     def release(self) -> None:
         for t in self.textures.values():
@@ -98,3 +121,6 @@ class NodeTextures:
         if self.directional is not None:
             self.directional.release()
         self.directional = None
+        if self.metal_albedo is not None:
+            self.metal_albedo.release()
+        self.metal_albedo = None

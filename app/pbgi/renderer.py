@@ -275,8 +275,15 @@ class Relighter:
     def asset_scene(self):
         from app.pbgi.asset_scene import AssetScene
         if self._asset_scene is None:
-            self._asset_scene = AssetScene(self.ctx, self.gather)
+            self._asset_scene = AssetScene(self.ctx, self.gather, self._room_environment)
         return self._asset_scene
+
+    def _room_environment(self):
+        """A new cube map of the scan's own colours seen from the asset's centre (the asset's
+        mirror bounce, app/pbgi/asset_scene.py; its owner releases it)."""
+        from app.pbgi.envmap import DEFAULT_FACE, EnvironmentMap
+        return EnvironmentMap.of_splats(self.ctx, self._splats_showing(None),
+                                        self.object_centre(), DEFAULT_FACE)
 
     def scene_nodes(self, materials=None, params: RenderParams | None = None):
         """The tree a render with ``params`` walks: the room and the asset's surfels

@@ -107,3 +107,13 @@ def asset_gradients(tree: SceneTree, gradients: np.ndarray) -> np.ndarray:
     g = np.asarray(gradients, np.float64)
     cols = [recolor(tree.asset, g[:, :, c])["color"] for c in range(3)]
     return np.stack(cols, axis=2).astype(np.float32)
+
+
+def asset_mirror(tree: SceneTree, mirror: np.ndarray) -> np.ndarray:
+    """(asset nodes, 5) float32: per asset node the mean of per-surfel ``mirror`` (n, 5) below it
+    (the mirror bounce's F0, roughness and weight, app/pbgi/asset_scene.py: mirror_params), in
+    ``asset_gradients``' order and weighting."""
+    m = np.zeros((len(mirror), 6), np.float64)
+    m[:, :5] = mirror
+    cols = [recolor(tree.asset, m[:, 3 * c:3 * c + 3])["color"] for c in range(2)]
+    return np.concatenate(cols, axis=1)[:, :5].astype(np.float32)

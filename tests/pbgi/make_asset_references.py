@@ -5,12 +5,13 @@ Mitsuba 3.
     python tests/pbgi/make_asset_references.py [--spp 1024] [--rooms city,apartment]
 
 Writes tests/pbgi/references/asset/: per room (apartment: tuning, city: held out), asset (blocks,
-sphere) and material (diffuse, rough_metal) a 96 x 96 half EXR of the asset in the panorama room
-(max_depth 3: one inter-reflection), and for the demo room's shadow the catcher with and
-without the demo sphere (``shadow_with.exr``, ``shadow_without.exr``); references.json holds
-per image its samples, render seconds and its own noise floor (relative RMSE of the mean of two
-independent halves, per pixel and 4x4-pooled, over the asset or the catcher), the Mitsuba version
-and the BSDF conventions. CI never runs this: the tests read the files.
+sphere) and material (A.KINDS for the blocks, A.CONVEX_KINDS for the sphere; ``--kinds`` picks
+some) a 96 x 96 half EXR of the asset in the panorama room (max_depth 3: one inter-reflection),
+and for the demo room's shadow the catcher with and without the demo sphere
+(``shadow_with.exr``, ``shadow_without.exr``); references.json holds per image its samples,
+render seconds, the Mitsuba version that made it and its own noise floor (relative RMSE of the
+mean of two independent halves, per pixel and 4x4-pooled, over the asset or the catcher), and
+the BSDF conventions. CI never runs this: the tests read the files.
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ def _mask(cloud, mesh, cam):
 
 
 def _entry(ref, mask, spp):
-    return {"spp": spp, "seconds": round(ref.seconds, 2),
+    import mitsuba as mi
+    return {"spp": spp, "seconds": round(ref.seconds, 2), "mitsuba": mi.__version__,
             "noise_rel_rmse": round(ref.noise_floor(mask, 1), 5),
             "noise_rel_rmse_4x4": round(ref.noise_floor(mask, 4), 5)}
 
@@ -51,6 +53,7 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=1024)
     ap.add_argument("--rooms", default="city,apartment")
     ap.add_argument("--assets", default=",".join(A.ASSETS))
+    ap.add_argument("--kinds", default=",".join(A.KINDS))
     ap.add_argument("--no-shadow", action="store_true")
     ap.add_argument("--out", default=str(A.REFERENCES))
     args = ap.parse_args(argv)
@@ -60,8 +63,10 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     index_path = out / A.INDEX
     index = json.loads(index_path.read_text()) if index_path.exists() else {"references": {}}
-    index.update({"mitsuba": mi.__version__, "variant": ms.VARIANT,
-                  "conventions": ms.CONVENTIONS, "max_depth": A.MAX_DEPTH, "size": A.SIZE})
+    # the version of the references without their own "mitsuba" (the first ones): kept
+    index.setdefault("mitsuba", mi.__version__)
+    index.update({"variant": ms.VARIANT, "conventions": ms.CONVENTIONS,
+                  "max_depth": A.MAX_DEPTH, "size": A.SIZE})
 
     def save():
         index_path.write_text(json.dumps(index, indent=1, sort_keys=True) + "\n")
@@ -71,8 +76,8 @@ def main(argv=None) -> int:
             cloud, mesh, cam = A.asset_scene(room, asset)
             side = ms.square_side(cloud)
             mask = _mask(cloud, mesh, cam)
-            for kind in A.KINDS:
-                if asset == "sphere" and kind == "rough_metal":
+            for kind in [k for k in args.kinds.split(",") if k]:
+                if asset == "sphere" and kind not in A.CONVEX_KINDS:
                     continue
                 scene = ms.build_scene(cloud, mesh, A.material(kind), cam, side,
                                        max_depth=A.MAX_DEPTH)

@@ -3,13 +3,19 @@ app/bench/asset_scenes.py, max_depth 3: one inter-reflection): a non-convex asse
 and inter-reflection, a convex one unchanged (rendered without its surfels: it cannot shadow or light itself), its shadow on the demo room's floor; and the scan's
 albedo estimate against the demo room's true albedo.
 
-Tolerances (4x4-pooled relative RMSE over the asset; the references' own noise floor is 0.7-1.5%):
+Tolerances (4x4-pooled relative RMSE over the asset; the references' own noise floor is 0.1-1.5%):
 measured on the tuning room (apartment) and the held-out one (city) at M = 24, 4096 surfels
 (stratified inside each triangle, leaves 1.25x: app/pbgi/scene_tree.py, LEAF_DISC), one bounce,
 Classic and Hybrid - diffuse blocks 2.4-5.0% (asserted at 5.5%; the issue's target is 8%),
 rough metal blocks 3.8-6.8% (the 10% target; 11.1-14.0% with the leaves' gaps and a diffuse
 bounce for the metal, app/pbgi/asset_scene.py: the glossy bounce), the sphere 0.7-1.3% (5%),
 and always below half of the error without the asset in the tree (23-47%).
+
+Smooth metals (the mirror bounce, asset_scene.py: mirror_params): gold 0.25 blocks 15.1% and
+30.9% (asserted at 35%), silver 0.05 19.6% and 40.6% (45%) - the city's sun, reflected twice,
+is where the distant-light mirror model is furthest off - and each at least 1.2x below the
+plane alone (19.2 / 39.1% and 49.9 / 66.8%, the bounce before it); without the asset in the
+tree they are 96 / 45% and 64 / 48%, so the 2x rule above does not apply to them in the city.
 """
 
 from __future__ import annotations
@@ -19,10 +25,13 @@ import pytest
 
 from app.bench import asset_scenes as A
 from app.bench.glossy import evaluate
+from app.pbgi import asset_scene
 from app.pbgi.renderer import Relighter, RenderParams
 
 TARGET = {("blocks", "diffuse"): 0.055, ("blocks", "rough_metal"): 0.10,
+          ("blocks", "glossy_metal"): 0.35, ("blocks", "mirror_metal"): 0.45,
           ("sphere", "diffuse"): 0.05}
+SMOOTH = ("glossy_metal", "mirror_metal")     # the mirror bounce's kinds
 
 
 @pytest.fixture(scope="module", params=["city", "apartment"])
@@ -31,7 +40,7 @@ def room(request):
 
 
 @pytest.mark.parametrize("asset", A.ASSETS)
-def test_asset_against_the_path_tracer(room, asset):
+def test_asset_against_the_path_tracer(room, asset, monkeypatch):
     index = A.load_index()["references"]
     cloud, mesh, cam = A.asset_scene(room, asset)
     r = Relighter()
@@ -52,7 +61,13 @@ def test_asset_against_the_path_tracer(room, asset):
                     assert on.stats.asset_surfels > 0
                 err = evaluate(on.image, ref)["rel_rmse_4x4"]
                 assert err <= TARGET[(asset, kind)], (room, asset, kind, mode, err)
-                if asset == "blocks":
+                if asset == "blocks" and kind in SMOOTH:
+                    with monkeypatch.context() as mp:     # the plane alone: no mirror weight
+                        mp.setattr(asset_scene, "MIRROR_ROUGHNESS", (-1.0, -0.5))
+                        plane = r.render(cam, [A.material(kind)],
+                                         RenderParams(mode=mode, microbuffer=24)).image
+                    assert err < evaluate(plane, ref)["rel_rmse_4x4"] / 1.2
+                elif asset == "blocks":
                     off = r.render(cam, [A.material(kind)],
                                    RenderParams(mode=mode, microbuffer=24,
                                                 asset_occlusion=False)).image

@@ -264,6 +264,25 @@ def test_albedo_estimator_matches_quadrature():
             np.testing.assert_array_less(np.abs(a - q), 4 * e + 2e-3)
 
 
+def test_metal_albedo_table_matches_the_estimator():
+    """The mirror bounce's split-sum table (metal_albedo_table: F0 x S + B over visible normals
+    on a deterministic grid) against directional_albedo's Monte Carlo at 32768 samples, for a
+    coloured metal, across roughness and view (measured within 0.4%); S + B <= 1 (a white
+    metal conserves energy) and S, B >= 0."""
+    t = B.metal_albedo_table()
+    n = t.shape[0]
+    assert t.shape == (n, n, 2) and (t >= 0).all() and (t.sum(-1) <= 1.0 + 2e-3).all()
+    base = np.array([0.95, 0.64, 0.37])
+    for i in (0, 3, 7, 12, 15):
+        for j in (0, 4, 10, 15):
+            r, mu = (i + 0.5) / n, (j + 0.5) / n
+            p = B.pack_params(base_color=base, metallic=1.0, roughness=r)
+            a, e = B.directional_albedo(p, np.array([np.sqrt(1 - mu * mu), 0.0, mu]), 32768,
+                                        return_stderr=True)
+            got = base * t[i, j, 0] + t[i, j, 1]
+            np.testing.assert_array_less(np.abs(got - a), 4 * e + 0.006)
+
+
 # ----------------------------------------------------------------------------------- energy
 
 _VIEWS = np.radians([0.0, 30.0, 60.0, 75.0, 85.0, 89.0])

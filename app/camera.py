@@ -36,11 +36,13 @@ class Camera:
         return self.width / self.height
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(right, true_up, forward) unit vectors in world space."""
+        """(right, true_up, forward) unit vectors in world space. ``up`` counts by its
+        direction only (a short one, such as (0, 1e-10, 0), is as good as (0, 1, 0))."""
         f = self.look_at - self.position
         f = f / np.linalg.norm(f)
-        r = np.cross(f, self.up)
-        if np.linalg.norm(r) < 1e-9:  # looking along 'up': pick any perpendicular
+        n = float(np.linalg.norm(self.up))
+        r = np.cross(f, self.up / n if n > 0.0 else self.up)
+        if np.linalg.norm(r) < PARALLEL_SIN:  # looking along 'up': pick any perpendicular
             r = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 0.0, 1.0])
         r = r / np.linalg.norm(r)
         return r, np.cross(r, f), f
@@ -92,6 +94,7 @@ def parse_size(text, minimum: int = 1) -> tuple[int, int]:
 
 
 MAX_PIXELS = MAX_CAMERA_PIXELS   # re-exported: render --size and the viewer check against it
+PARALLEL_SIN = 1e-9   # 'up' within this sine of the view is parallel to it (no roll defined)
 CAMERA_KEYS = ("position", "look_at", "up", "fov_y_deg", "width", "height", "name")
 
 
@@ -110,8 +113,10 @@ def camera_from_dict(d: dict, source=None, what: str = "camera") -> Camera:
     if w * h > MAX_PIXELS:
         raise ScanlightError(source, f"{what} image {w}x{h} is larger than the limit of "
                                      f"{MAX_PIXELS:,} pixels (8192x8192)")
+    if not np.linalg.norm(up) > 0.0:
+        raise ScanlightError(source, f"{what} 'up' is the zero vector (no direction)")
     up_dir = np.cross(at - pos, up)
-    if np.linalg.norm(up_dir) < 1e-12 * np.linalg.norm(at - pos) * np.linalg.norm(up):
+    if np.linalg.norm(up_dir) < PARALLEL_SIN * np.linalg.norm(at - pos) * np.linalg.norm(up):
         raise ScanlightError(source, f"{what} 'up' is parallel to the viewing direction")
     return Camera(pos, at, up, float(fov), w, h)
 

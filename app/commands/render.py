@@ -127,6 +127,7 @@ def run(args) -> int:
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams, render_steps
     from app.pbgi.upsample import gi_scale_of, render_upsampled
+    from app.render.memory import check_render_memory
 
     values = _check_args(args)
     from app.commands.compare import input_files, parse_side
@@ -141,6 +142,7 @@ def run(args) -> int:
     if args.size:
         w, h = parse_size(args.size)
         camera = replace(camera, width=w, height=h)
+    check_render_memory(camera.width * (2 if args.compare else 1), camera.height)
     materials = [load_material(args.material)] if args.material else None
     cloud = load_cloud(args.cloud)
     mesh, asset = load_placed_asset(args, cloud)

@@ -259,6 +259,7 @@ def run(args) -> int:
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
     from app.pbgi.upsample import gi_scale_of, render_upsampled
+    from app.render.memory import check_render_memory
     from app.render.tonemap import tonemap_to_srgb8
 
     values, _ = _check_args(args)
@@ -267,6 +268,9 @@ def run(args) -> int:
     count = len(path_cams) if path_cams is not None else args.count
     first, last = parse_range(args.frame_range, count)
     _check_targets(args, out_dir, first, last)
+    w, h = ((path_cams[0].width, path_cams[0].height) if path_cams
+            else parse_size(args.size or DEFAULT_SIZE))
+    check_render_memory(w, h)
 
     cloud = load_cloud(args.cloud)
     mesh, _ = load_placed_asset(args, cloud)

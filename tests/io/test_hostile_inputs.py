@@ -151,6 +151,7 @@ CAMERA_CASES = {
     "position as strings": ({"position": ["1", "2", "3"]}, "position"),
     "fov false": ({"fov_y_deg": False}, "fov_y_deg"),
     "up along the view": ({"up": [-0.3, -0.2, -0.9]}, "up"),
+    "up the zero vector": ({"up": [0, 0, 0]}, "up"),
 }
 
 
@@ -160,6 +161,20 @@ def test_camera_json_types_not_just_ranges(case, tmp_path):
     p = tmp_path / "cam.json"
     p.write_text(json.dumps({**CAM, **change}))
     _refused(p, _load_camera, word)
+
+
+def test_a_short_up_vector_counts_by_its_direction(tmp_path):
+    """'up' (0, 1e-10, 0) is +y: the image is not rolled (it was swapped for an arbitrary
+    perpendicular, a 90-degree roll, because the cross product was compared with an absolute
+    threshold); a zero 'up' is refused above."""
+    from app.camera import load_camera
+    frames = []
+    for up in ([0, 1, 0], [0, 1e-10, 0], [0, 5e3, 0]):
+        p = tmp_path / "cam.json"
+        p.write_text(json.dumps({**CAM, "up": up}))
+        frames.append(load_camera(p).basis())
+    for f in frames[1:]:
+        assert np.allclose(np.stack(f), np.stack(frames[0]), atol=1e-12)
 
 
 @pytest.mark.parametrize("values,word", [({"base_color": "123"}, "base_color"),
@@ -475,6 +490,34 @@ def test_render_size_beyond_the_pixel_limit_is_a_usage_error(good, tmp_path, cap
     err = capsys.readouterr().err.strip()
     assert code == 2 and "limit" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "o.exr").exists()
+
+
+def test_a_render_larger_than_the_memory_is_refused_before_it_loads(good, tmp_path, capsys,
+                                                                  monkeypatch):
+    """8192 x 8192 is within the pixel limit but needs about 42 GB (app/render/memory.py): on
+    the 24 GB machine the kernel killed the render after 4 minutes, with no line. The estimate
+    is checked against the memory available before anything loads: one "out of memory" line,
+    exit 3, nothing written - for render and turntable. (Here the machine is made to have
+    2 GB, so a 2048 x 2048 image, 2.8 GB, is refused; the real figure is read below.)"""
+    from app.cli import main
+    from app.render import memory
+    have = memory.available_bytes()
+    assert have is not None and have > 0               # /proc/meminfo on this Linux
+    assert memory.render_bytes(8192, 8192) > 40e9
+    monkeypatch.setattr(memory, "available_bytes", lambda: 2_000_000_000)
+    for argv, out in ((["render", "--out", str(tmp_path / "o.exr"), "--size", "2048x2048"],
+                       tmp_path / "o.exr"),
+                      (["turntable", "--out", str(tmp_path / "seq"), "--size", "2048x2048",
+                        "--count", "2"], tmp_path / "seq")):
+        code = main(argv[:1] + ["--cloud", str(good / "room.ply"),
+                                "--object", str(good / "obj.json")]
+                    + (["--camera", str(good / "cam.json")] if argv[0] == "render" else [])
+                    + argv[1:])
+        err = capsys.readouterr().err.strip()
+        assert code == 3 and "out of memory" in err and "2048x2048" in err, err
+        assert len(err.splitlines()) == 1 and not out.exists()
+    monkeypatch.setattr(memory, "available_bytes", lambda: 3_000_000_000)
+    memory.check_render_memory(2048, 2048)             # 2.8 GB of 3: allowed
 
 
 GLTF_PATHS = {

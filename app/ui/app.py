@@ -171,7 +171,9 @@ def _check_screenshot(shot: str, session: Session, paths) -> None:
 def run_viewer(args) -> int:
     from app.commands.asset_args import placement_options
     from app.ui.files import open_at_start, startup_files
+    from app.render.memory import check_render_memory
     size = parse_size(getattr(args, "size", "1280x800"))
+    check_render_memory(*size)           # a window's frames are renders of its size
     placement = placement_options(args)
     cloud, asset = startup_files([p for p in (getattr(args, "cloud", None),
                                               getattr(args, "asset", None)) if p])

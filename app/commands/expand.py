@@ -121,6 +121,10 @@ def run(args) -> int:
                             str(outs.temp("--out")),
                             str(outs.temp("--report")) if args.report else None,
                             return_cloud=False, output_name=str(out))
+        if args.worker != "process":
+            # the photo is read here, on the main thread, where what OpenEXR prints about a
+            # damaged file is folded into the one error line (ExpandRequest.with_photo_read)
+            req = req.with_photo_read()
         job = Job(run_expand_request, req, args.worker)
         job.start()
         shown = 0

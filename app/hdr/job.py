@@ -10,7 +10,7 @@ an interrupted or failed run never leaves a half-written cloud or report.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +64,8 @@ def check_capture_size(cams, face_size: int, source=None) -> None:
 class ExpandRequest:
     """Inputs are in-memory objects or file paths (paths are cheaper to send to a process).
 
-    cloud: PointCloud or path; photo: (H, W, 3) linear array or image path; cameras: a sequence
+    cloud: PointCloud or path; photo: (H, W, 3) linear array, an image path, or an image already
+    read from its file (app.io.exr.LinearImage, see ``with_photo_read``); cameras: a sequence
     of positions / Camera objects or a cameras JSON path; params: the ExpandParams (the method
     included). out_path / report_path: where the work writes the results (atomically); with
     ``return_cloud=False`` the result carries only the report (no large pickle back).
@@ -91,6 +92,22 @@ class ExpandRequest:
     def method(self) -> str:
         return self.params.method
 
+    def with_photo_read(self) -> "ExpandRequest":
+        """This request with its photo (when given as a path) read here, on the caller's thread,
+        into a LinearImage that keeps the path as its name.
+
+        The command line calls it on its main thread before a thread worker starts. OpenEXR
+        prints its own messages about a damaged file ("(EXR_ERR_BAD_CHUNK_LEADER) ..." to file
+        descriptor 2, "Warning: Exception raised ..." to stdout), and app.io.exr can fold them
+        into the one error line only on the main thread: a redirection of descriptor 2 is
+        process-wide, so on a worker it would also swallow the main thread's progress lines.
+        A worker process reads the photo on its own main thread and needs none of this (and
+        would only pay for pickling the pixels)."""
+        if not isinstance(self.photo, (str, Path)):
+            return self
+        from app.io.exr import read_image
+        return replace(self, photo=replace(read_image(self.photo), source=str(self.photo)))
+
     @staticmethod
     def from_settings(cloud, photo, positions, settings, **kw) -> "ExpandRequest":
         """The viewer's request: its settings (anything indexable by the ``hdr.*`` keys) give
@@ -104,7 +121,7 @@ def run_expand_request(req: ExpandRequest, progress=None, cancel=None) -> Expans
 
     Returns app.hdr.result.Expansion (its ``cloud`` None when ``return_cloud`` is False).
     """
-    from app.io.exr import read_image
+    from app.io.exr import LinearImage, read_image
     from app.io.pointcloud import load_cloud, save_cloud
 
     names = {}
@@ -115,11 +132,14 @@ def run_expand_request(req: ExpandRequest, progress=None, cancel=None) -> Expans
     photo = req.photo
     photo_warnings = []
     if isinstance(photo, (str, Path)):
-        names["photo"] = str(photo)
-        img = read_image(photo)
+        photo = replace(read_image(photo), source=str(photo))   # named as the user named it
+    if isinstance(photo, LinearImage):   # read from a file, here or by with_photo_read
+        img = photo
+        if img.source:
+            names["photo"] = str(img.source)
         if not img.hdr:
-            photo_warnings.append(f"{photo}: an 8-bit image, not HDR: the expansion cannot "
-                                  "recover radiance above its clipping point")
+            photo_warnings.append(f"{img.source or 'photo'}: an 8-bit image, not HDR: the "
+                                  "expansion cannot recover radiance above its clipping point")
         photo = img.rgb
     cams = req.cameras
     if isinstance(cams, (str, Path)):

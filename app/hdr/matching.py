@@ -17,7 +17,19 @@ from app.hdr.project import PhotoMatch
 
 
 def match_faces(faces, photo_ldr: np.ndarray, params, check, progress, report: dict) -> list:
-    """One PhotoMatch per face (NNF to I_LDR); fills ``report["match"]``."""
+    """One PhotoMatch per face (NNF to I_LDR); fills ``report["match"]``.
+
+    ``faces`` may be empty: the capture renders only faces that can see an overexposed point
+    (pipeline._capture_faces), so single-view capture cameras that all look away from them
+    leave none. There is then nothing to match and no evidence either way about the photo:
+    the report says so (``faces`` 0, ``close_match_fraction`` None, not 0.0, which would read
+    as "a photo of another scene"), and the pipeline leaves those points to Poisson editing,
+    as it does for points a cube map's faces do not see."""
+    if not faces:
+        report["match"] = {"faces": 0, "work_size_face": params.pm_face_size,
+                           "work_size_photo": None, "close_match_fraction": None,
+                           "scale_octaves": None, "scale_rejected_fraction": 0.0}
+        return []
     match_lum = params.pm_match == "luminance"
     b_img = photo_ldr if not match_lum else luminance(photo_ldr)[..., None]
     b_work, photo_factor = resize_area(b_img, params.pm_photo_size)
@@ -40,7 +52,7 @@ def match_faces(faces, photo_ldr: np.ndarray, params, check, progress, report: d
     # them (51-86% on the real panoramas, whose photo is a blurry crop of a 512-px panorama).
     tex = np.concatenate([m.field.cost[m.textured & ~_flat(m.field)] for m in matches])
     good = float(np.mean(tex < params.good_match_ssd * params.threshold_ssd)) if len(tex) else 0.0
-    report["match"] = {"work_size_face": params.pm_face_size,
+    report["match"] = {"faces": len(faces), "work_size_face": params.pm_face_size,
                        "work_size_photo": list(b_work.shape[:2]),
                        "close_match_fraction": good,
                        **scale_consistency(matches, faces, params.threshold_ssd,

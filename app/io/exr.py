@@ -133,7 +133,11 @@ def _library_output():
     for a truncated file its core writes "(EXR_ERR_BAD_CHUNK_LEADER) ..." to file descriptor 2
     and its Python binding "Warning: Exception raised ..." to sys.stdout, where a command's
     results go - two lines besides our one. Only on the main thread (the command line): in a
-    worker it would also swallow the other threads' output."""
+    worker it would also swallow the other threads' output (descriptor 2 and sys.stdout are the
+    process's, not the thread's; the main thread's progress lines would vanish into the error).
+    So a command that works in a thread reads its images on the main thread first, as
+    ``expand`` does (app.hdr.job.ExpandRequest.with_photo_read); a worker process reads them on
+    its own main thread."""
     out: list[str] = []
     if threading.current_thread() is not threading.main_thread():
         yield out

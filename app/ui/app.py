@@ -134,8 +134,7 @@ class OffscreenViewer:
         return self.engine.view.read_display()
 
     def save_window_png(self, path) -> None:
-        from app.io.images import write_png
-        write_png(path, self.read_window())
+        save_png(path, self.read_window(), self.session)
 
     def run(self, frames: int, screenshot: str | None = None) -> int:
         frames = max(int(frames), 1)
@@ -166,6 +165,18 @@ def _check_screenshot(shot: str, session: Session, paths) -> None:
     inputs = {n: str(p) for n, p in zip(names, ins) if p and Path(str(p)).exists()}
     check_outputs(inputs, {"--screenshot": shot,
                            "--screenshot's EXR": str(Path(shot).with_suffix(".exr"))})
+
+
+def save_png(path, image, session: Session) -> None:
+    """``viewer.save_window_png`` (a --script's screenshots): the same checks as --screenshot - a
+    .png name, none of the files the viewer reads - then the PNG (a script had written the
+    window over the scan it had open; the script is code and can still write anything itself,
+    but this call does not overwrite an input by mistake)."""
+    from app.io.images import write_png
+    if Path(str(path)).suffix.lower() != ".png":
+        raise ScanlightError(path, "save_window_png writes a PNG: give a .png name")
+    _check_screenshot(str(path), session, [])
+    write_png(path, image)
 
 
 def run_viewer(args) -> int:

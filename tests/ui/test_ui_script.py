@@ -73,3 +73,33 @@ def test_a_script_without_a_display_says_so(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     res = _view("--script", str(tmp_path / "x.py"), env=env)
     assert res.returncode == 2 and "--offscreen" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_save_window_png_does_not_overwrite_what_the_viewer_reads(tmp_path):
+    """viewer.save_window_png has --screenshot's checks: a script that saved the window over the
+    session's cloud used to overwrite it with PNG bytes (exit 0). Now that call is one line naming
+    the file (exit 3, via on_frame's own line) and the cloud is untouched; a .png name elsewhere
+    still works, and a name that is not .png is refused too."""
+    from tests.support import scenes as S
+
+    from app.errors import ScanlightError
+    from app.io.pointcloud import save_cloud
+    from app.ui.app import run_viewer
+    cloud = tmp_path / "room.ply"
+    save_cloud(S.box_room(spacing=0.25), cloud)
+    before = cloud.read_bytes()
+    for target, ok in ((str(cloud), False), (str(tmp_path / "shot.jpg"), False),
+                       (str(tmp_path / "shot.png"), True)):
+        script = tmp_path / "save.py"
+        script.write_text(f"def on_frame(viewer, i):\n    viewer.save_window_png({target!r})\n"
+                          "    viewer.quit()\n")
+        args = argparse.Namespace(cloud=str(cloud), session=None, last=False, offscreen=True,
+                                  frames=3, screenshot=None, size="64x48", script=str(script),
+                                  script_arg=[])
+        if ok:
+            assert run_viewer(args) == 0 and Path(target).read_bytes()[:4] == b"\x89PNG"
+        else:
+            with pytest.raises(ScanlightError) as err:
+                run_viewer(args)
+            assert "save.py" in str(err.value) and len(str(err.value).splitlines()) == 1
+    assert cloud.read_bytes() == before

@@ -27,6 +27,7 @@ from app.errors import ScanlightError, UsageError
 from app.pbgi.renderer import Relighter
 from app.settings import Session, load_last_session, load_session
 from app.ui import demo_light
+from app.ui.shots import check_screenshot, save_png
 
 log = logging.getLogger(__name__)
 
@@ -153,32 +154,6 @@ class OffscreenViewer:
         return 0
 
 
-def _check_screenshot(shot: str, session: Session, paths) -> None:
-    """--screenshot and the EXR written beside it name no file the viewer reads (the session, its
-    cloud, photo or asset, the script: a session photo.exr was overwritten by photo.png's EXR),
-    no folder and no special file (app.io.outputs.check_outputs)."""
-    from app.io.outputs import check_outputs
-    ins = [session.path, session.cloud, session.photo, session.hdr_cloud, session.asset,
-           session.hdri, *paths]
-    names = ("--session", "the session's cloud", "the session's photo", "the session's HDR cloud",
-             "the session's asset", "the session's HDRI", "CLOUD", "ASSET", "--script")
-    inputs = {n: str(p) for n, p in zip(names, ins) if p and Path(str(p)).exists()}
-    check_outputs(inputs, {"--screenshot": shot,
-                           "--screenshot's EXR": str(Path(shot).with_suffix(".exr"))})
-
-
-def save_png(path, image, session: Session) -> None:
-    """``viewer.save_window_png`` (a --script's screenshots): the same checks as --screenshot - a
-    .png name, none of the files the viewer reads - then the PNG (a script had written the
-    window over the scan it had open; the script is code and can still write anything itself,
-    but this call does not overwrite an input by mistake)."""
-    from app.io.images import write_png
-    if Path(str(path)).suffix.lower() != ".png":
-        raise ScanlightError(path, "save_window_png writes a PNG: give a .png name")
-    _check_screenshot(str(path), session, [])
-    write_png(path, image)
-
-
 def run_viewer(args) -> int:
     from app.commands.asset_args import placement_options
     from app.ui.files import open_at_start, startup_files
@@ -203,7 +178,7 @@ def run_viewer(args) -> int:
         raise UsageError(None, f"--screenshot must name a .png file (an .exr of the linear "
                                f"image is written beside it), got {shot!r}")
     if shot:
-        _check_screenshot(shot, session, [cloud, asset, script_path])
+        check_screenshot(shot, session, [cloud, asset, script_path])
     if getattr(args, "offscreen", False):
         viewer = OffscreenViewer(session, size, script, relighter=Relighter,
                                  script_args=script_args)

@@ -310,7 +310,7 @@ class ViewerWindow:
         return np.frombuffer(data, np.uint8).reshape(h, w, 3)[::-1].copy()
 
     def save_window_png(self, path) -> None:
-        from app.ui.app import save_png
+        from app.ui.shots import save_png
         save_png(path, self.read_window(), self.session)
 
     def quit(self) -> None:

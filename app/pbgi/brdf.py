@@ -336,26 +336,24 @@ def metal_albedo_table(size: int = METAL_ALBEDO_SIZE, lattice: int = 48) -> np.n
         t = (np.arange(size) + 0.5) / size
         g = (np.arange(lattice) + 0.5) / lattice
         u1, u2 = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+        V = np.stack([np.sqrt(1.0 - t * t), np.zeros(size), t], axis=1)[:, None, :]
         out = np.zeros((size, size, 2), np.float64)
         for i, r in enumerate(t):
-            a0 = np.zeros(size)
-            a1 = np.zeros(size)
-            for base, acc in ((0.0, a0), (1.0, a1)):
-                params = pack_params(base_color=(base, base, base), metallic=1.0,
-                                     roughness=float(r))
-                alpha = float(spec_alphas(params)[0])
-                V = np.stack([np.sqrt(1.0 - t * t), np.zeros(size), t], axis=1)[:, None, :]
-                H = _sample_ggx_vndf(V, alpha, alpha, u1[None], u2[None])     # (size, n, 3)
-                vh = np.sum(V * H, axis=-1)
-                L = 2.0 * vh[..., None] * H - V
-                ok = (L[..., 2] > 0) & (vh > 0)
-                f = _local_frame_brdf(params, L, np.broadcast_to(V, L.shape),
-                                      ("specular",))[..., 0]
-                d = _gtr2_aniso(H[..., 2], H[..., 0], H[..., 1], alpha, alpha)
-                g1 = 2.0 * t[:, None] * _smith_ggx(t[:, None], alpha)
-                pdf = d * g1 / (4.0 * t[:, None])
-                acc[:] = np.where(ok, f * np.maximum(L[..., 2], 0.0) / np.where(ok, pdf, 1.0),
-                                  0.0).mean(axis=1)
+            # the half vectors, directions and pdf depend on the roughness, not on F0
+            alpha = float(spec_alphas(pack_params(metallic=1.0, roughness=float(r)))[0])
+            H = _sample_ggx_vndf(V, alpha, alpha, u1[None], u2[None])         # (size, n, 3)
+            vh = np.sum(V * H, axis=-1)
+            L = 2.0 * vh[..., None] * H - V
+            ok = (L[..., 2] > 0) & (vh > 0)
+            d = _gtr2_aniso(H[..., 2], H[..., 0], H[..., 1], alpha, alpha)
+            pdf = d * 2.0 * t[:, None] * _smith_ggx(t[:, None], alpha) / (4.0 * t[:, None])
+            weight = np.where(ok, np.maximum(L[..., 2], 0.0) / np.where(ok, pdf, 1.0), 0.0)
+            a0, a1 = (
+                (_local_frame_brdf(pack_params(base_color=(base,) * 3, metallic=1.0,
+                                               roughness=float(r)),
+                                   L, np.broadcast_to(V, L.shape), ("specular",))[..., 0]
+                 * weight).mean(axis=1)
+                for base in (0.0, 1.0))
             out[i, :, 0], out[i, :, 1] = a1 - a0, a0
         _METAL_ALBEDO[key] = out.astype(np.float32)
     return _METAL_ALBEDO[key]

@@ -99,21 +99,28 @@ def recolor_asset(tree: SceneTree, colors: np.ndarray) -> SceneTree:
     return SceneTree(nodes, tree.asset_first, tree.asset, tree.surfel_area)
 
 
+def _asset_means(tree: SceneTree, values: np.ndarray) -> np.ndarray:
+    """(asset nodes, k) float32: per asset node the mean of the per-surfel columns ``values``
+    (n, k) below it - the point-count-weighted mean ``recolor`` gives the colours, three
+    columns at a time."""
+    v = np.asarray(values, np.float64).reshape(len(values), -1)
+    k = v.shape[1]
+    padded = np.zeros((len(v), -(-k // 3) * 3))
+    padded[:, :k] = v
+    cols = [recolor(tree.asset, padded[:, c:c + 3])["color"] for c in range(0, k, 3)]
+    return np.concatenate(cols, axis=1)[:, :k].astype(np.float32)
+
+
 def asset_gradients(tree: SceneTree, gradients: np.ndarray) -> np.ndarray:
     """(asset nodes, 3, 3) float32: per asset node the mean of per-surfel ``gradients`` (n, 3, 3)
     below it (the glossy bounce's G, app/pbgi/nodetex.py: set_directional), node order from
     ``tree.asset_first`` on - the same point-count-weighted mean as the colours, so a cluster
     sends the mean of its surfels' L(d) = colour + G d."""
-    g = np.asarray(gradients, np.float64)
-    cols = [recolor(tree.asset, g[:, :, c])["color"] for c in range(3)]
-    return np.stack(cols, axis=2).astype(np.float32)
+    return _asset_means(tree, np.asarray(gradients).reshape(len(gradients), 9)).reshape(-1, 3, 3)
 
 
 def asset_mirror(tree: SceneTree, mirror: np.ndarray) -> np.ndarray:
     """(asset nodes, 5) float32: per asset node the mean of per-surfel ``mirror`` (n, 5) below it
     (the mirror bounce's F0, roughness and weight, app/pbgi/asset_scene.py: mirror_params), in
     ``asset_gradients``' order and weighting."""
-    m = np.zeros((len(mirror), 6), np.float64)
-    m[:, :5] = mirror
-    cols = [recolor(tree.asset, m[:, 3 * c:3 * c + 3])["color"] for c in range(2)]
-    return np.concatenate(cols, axis=1)[:, :5].astype(np.float32)
+    return _asset_means(tree, mirror)

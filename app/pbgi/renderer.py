@@ -278,12 +278,13 @@ class Relighter:
             self._asset_scene = AssetScene(self.ctx, self.gather, self._room_environment)
         return self._asset_scene
 
-    def _room_environment(self):
-        """A new cube map of the scan's own colours seen from the asset's centre (the asset's
-        mirror bounce, app/pbgi/asset_scene.py; its owner releases it)."""
+    def _room_environment(self, face: int | None = None):
+        """A new cube map of the scan's own colours seen from the asset's centre: the
+        environment-map baseline's (``environment``) and the asset's mirror bounce's
+        (app/pbgi/asset_scene.py, at the default face size); its owner releases it."""
         from app.pbgi.envmap import DEFAULT_FACE, EnvironmentMap
         return EnvironmentMap.of_splats(self.ctx, self._splats_showing(None),
-                                        self.object_centre(), DEFAULT_FACE)
+                                        self.object_centre(), face or DEFAULT_FACE)
 
     def scene_nodes(self, materials=None, params: RenderParams | None = None):
         """The tree a render with ``params`` walks: the room and the asset's surfels
@@ -346,8 +347,7 @@ class Relighter:
                 self._env = EnvironmentMap(self.ctx, hdri_faces(self.hdri, int(face)),
                                            self.object_centre())
             else:
-                self._env = EnvironmentMap.of_splats(self.ctx, self._splats_showing(None),
-                                                     self.object_centre(), face)
+                self._env = self._room_environment(face)
             self._env_key = key
         return self._env
 

@@ -4,8 +4,8 @@ A render's peak memory grows with its pixels: the G-buffer and the receivers' re
 framebuffers, the float images of the composite, the anti-aliasing samples and the outputs. On
 Linux an allocation past the machine's memory does not raise MemoryError: the kernel's
 out-of-memory killer ends the process without a line (exit 137, after minutes of work). So
-``render`` and ``turntable`` refuse an image whose pixels alone would need more than the memory
-available now, with the same ``out of memory (...)`` line as a MemoryError (app/errors.py:
+``render``, ``turntable`` and ``view --size`` (a window's frames are renders of its size) refuse
+an image whose pixels alone would need more than the memory available now, with the same ``out of memory (...)`` line as a MemoryError (app/errors.py:
 refusal), before loading anything.
 
 The estimate is the image's share only (``BASE_BYTES`` + ``BYTES_PER_PIXEL`` per pixel), so it

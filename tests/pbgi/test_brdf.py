@@ -205,13 +205,14 @@ def test_lambert_limit_retro_reflection_factor():
     np.testing.assert_allclose(f, expected, rtol=1e-10)
 
 
-def _lambert_limit_v_normal(mu, base):
+def _lambert_limit_v_normal(mu, base, f0=0.0):
     """V = N, L at cos theta = mu, roughness 1: l.h = cos(theta/2), Fd90 = 1.5 + mu; the
-    specular is GGX with alpha 1 (D = 1/pi, Smith 1/(2 (1 + mu))) times Schlick F(l.h)."""
+    specular is GGX with alpha 1 (D = 1/pi, Smith 1/(2 (1 + mu))) times Schlick F(l.h) with
+    reflectance ``f0`` at normal incidence (0 for specular 0)."""
     lh = np.sqrt((1 + mu) / 2)
     diffuse = base / np.pi * (1 + (0.5 + mu) * (1 - mu) ** 5)[:, None]
-    spec = ((1 - lh) ** 5 / (2 * np.pi * (1 + mu)))[:, None]
-    return diffuse + spec
+    schlick = f0 + (1 - f0) * ((1 - lh) ** 5)[:, None]
+    return diffuse + schlick / (2 * np.pi * (1 + mu))[:, None]
 
 
 def test_lambert_limit_view_normal_curve(gl_eval):
@@ -225,6 +226,44 @@ def test_lambert_limit_view_normal_curve(gl_eval):
     rep = lambda a: np.tile(a, (n, 1)).astype(np.float32)  # noqa: E731
     g = gl_eval(rep(p), Ld.astype(np.float32), rep(EZ), rep(EZ), rep(EX), rep(EY))[:, 0, :3]
     np.testing.assert_allclose(g, expected, rtol=2e-5)
+
+
+def test_the_papers_constants_in_closed_form(gl_eval):
+    """Burley 2012's constants, each against a closed form that a twin-for-twin test cannot see
+    (a constant changed in both principled.glsl and brdf.py keeps them equal):
+    - specular 0.5 is a dielectric of index 1.5: F0 = ((1.5 - 1) / (1.5 + 1))^2 = 0.04, and
+      specular tint 1 scales it by the tint hue base / lum(base), lum = 0.3 R + 0.6 G + 0.1 B;
+    - the sheen is white at sheen tint 0 and the tint hue at 1;
+    - the clearcoat at L = V = N is 0.25 x Gr x 0.04 x D_GTR1(alpha) with Smith Gr = 1/4 (at
+      cos 1, whatever alpha) and D_GTR1 = (a^2 - 1) / (pi ln(a^2) a^2) at its peak, alpha
+      from 0.1 (gloss 0) down to 0.001 (gloss 1), linearly."""
+    base = np.array([0.8, 0.2, 0.1])
+    hue = base / (0.3 * base[0] + 0.6 * base[1] + 0.1 * base[2])
+    mu = np.linspace(1.0, 0.05, 20)
+    Ld = np.stack([np.sqrt(1 - mu ** 2), np.zeros_like(mu), mu], -1)
+    n = len(mu)
+    rep = lambda a: np.tile(a, (n, 1)).astype(np.float32)  # noqa: E731
+    ior = 1.5
+    f0 = ((ior - 1) / (ior + 1)) ** 2
+    for tint, want_f0 in ((0.0, f0), (1.0, f0 * hue)):
+        lim = dict(LAMBERT_LIMIT, specular=0.5)
+        p = B.pack_params(base_color=base, specular_tint=tint, **lim)
+        expected = _lambert_limit_v_normal(mu, base, want_f0)
+        np.testing.assert_allclose(B.principled_brdf(p, Ld, EZ, EZ, EX, EY), expected,
+                                   rtol=1e-10)
+        g = gl_eval(rep(p), Ld.astype(np.float32), rep(EZ), rep(EZ), rep(EX), rep(EY))[:, 0, :3]
+        np.testing.assert_allclose(g, expected, rtol=2e-5)
+    fh = ((1 - np.sqrt((1 + mu) / 2)) ** 5)[:, None]
+    for tint, colour in ((0.0, np.ones(3)), (1.0, hue)):
+        p = B.pack_params(base_color=base, sheen=0.7, sheen_tint=tint)
+        np.testing.assert_allclose(B.principled_brdf(p, Ld, EZ, EZ, EX, EY, lobes=("sheen",)),
+                                   fh * 0.7 * colour, rtol=1e-12)
+    for gloss in (0.0, 0.5, 1.0):
+        a2 = (0.1 + (0.001 - 0.1) * gloss) ** 2
+        peak = 0.25 * 0.25 * 0.04 * (a2 - 1) / (np.pi * np.log(a2) * a2)
+        p = B.pack_params(clearcoat=1.0, clearcoat_gloss=gloss)
+        got = B.principled_brdf(p, EZ, EZ, EZ, EX, EY, lobes=("clearcoat",))
+        np.testing.assert_allclose(got, np.full(3, peak), rtol=1e-10)
 
 
 def test_albedo_analytic_cases():

@@ -81,3 +81,27 @@ def test_cube_capture_keeps_each_face_camera():
     minus_z = cap.faces[5]
     assert minus_z.covered.mean() > 0.99 and minus_z.intrinsics()[0, 0] == pytest.approx(16.0)
     np.testing.assert_allclose(minus_z.extrinsics(), minus_z.camera.view())
+
+
+def test_projection_averages_the_faces_by_inverse_ssd():
+    """Two faces see the same wall; PatchMatch gave face 0 the value 1 with SSD 0.01, face 1
+    the value 3 with SSD 0.03, a third sample is over the threshold. The projection (paper
+    Section 4.1: samples weighted by 1 / (SSD + eps), those over t_h refused) gives each point
+    (1 / 0.02 x 1 + 1 / 0.04 x 3) / (1 / 0.02 + 1 / 0.04) = 5 / 3 and counts the refusal."""
+    from app.hdr.project import SSD_EPS, project_to_points
+    p, nrm, col = _wall(20_000)
+    faces = [splat_face(Camera((x, 0, 0), (x, 0, -1), fov_y_deg=60, width=48, height=48), p, nrm,
+                        col, point_spacing(p))[0] for x in (0.0, 0.1, 0.2)]
+    targets = np.flatnonzero((np.abs(p[:, 0] - 0.1) < 0.3) & (np.abs(p[:, 1]) < 0.3))
+    given = {0: (1.0, 0.01), 1: (3.0, 0.03), 2: (50.0, 0.5)}
+
+    def sampler(fi, u, v, ldr):
+        value, ssd = given[fi]
+        return np.full((len(u), 3), value), np.full(len(u), ssd)
+
+    pj = project_to_points(p, col, targets, faces, sampler, th=0.2)
+    w0, w1 = 1.0 / (0.01 + SSD_EPS), 1.0 / (0.03 + SSD_EPS)
+    assert SSD_EPS == 0.01
+    assert pj.has_value[targets].all() and pj.rejected == len(targets)
+    np.testing.assert_allclose(pj.values[targets], (w0 * 1.0 + w1 * 3.0) / (w0 + w1), rtol=1e-6)
+    np.testing.assert_allclose(pj.score[targets], 0.01)

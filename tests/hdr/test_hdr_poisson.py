@@ -80,3 +80,43 @@ def test_all_points_unknown_no_singular_matrix():
     L = np.full((len(pos), 1), 0.5)
     res = poisson_fill(pos, L, np.zeros((len(pos), 1)), np.ones(len(pos), bool))
     assert res.unresolved.all() and np.all(res.values == np.float32(0.5))
+
+
+@pytest.mark.parametrize("solver", ["cg", "direct"])
+def test_fill_solves_the_documented_system_on_an_irregular_cloud(solver):
+    """On a random 3-D cloud (no grid symmetry to hide a one-sided neighbourhood) the fill is
+    the solution of the module's equation, built here densely from its words: q is p's
+    neighbour inside Omega when either is among the other's k nearest, a point outside Omega
+    when it is among p's k nearest; |N_p| H(p) - sum over Omega neighbours of H(q) = sum over
+    outside neighbours of H(q) + sum over all neighbours of (L(p) - L(q)). CG converges."""
+    rng = np.random.default_rng(3)
+    n, k = 400, 6
+    pos = rng.random((n, 3))
+    L = rng.random((n, 2))
+    values = rng.random((n, 2)) * 4.0
+    omega = rng.random(n) < 0.4
+    res = poisson_fill(pos, L, values, omega, k=k, solver=solver, rtol=1e-12)
+    assert not res.unresolved.any() and res.filled.sum() == omega.sum()
+    if solver == "cg":
+        assert 0 < res.iterations < 5000
+
+    from scipy.spatial import cKDTree
+    knn = cKDTree(pos).query(pos, k + 1)[1][:, 1:]
+    near = np.zeros((n, n), dtype=bool)
+    near[np.repeat(np.arange(n), k), knn.ravel()] = True
+    inside = omega[:, None] & omega[None, :]
+    nb = np.where(inside, near | near.T, near & ~omega[None, :])
+    idx = np.flatnonzero(omega)
+    a = np.zeros((len(idx), len(idx)))
+    b = np.zeros((len(idx), 2))
+    for row, p in enumerate(idx):
+        qs = np.flatnonzero(nb[p])
+        a[row, row] = len(qs)
+        for q in qs:
+            b[row] += L[p] - L[q]
+            if omega[q]:
+                a[row, np.searchsorted(idx, q)] -= 1.0
+            else:
+                b[row] += values[q]
+    want = np.linalg.solve(a, b)
+    np.testing.assert_allclose(res.values[idx], want, rtol=1e-5, atol=1e-5)

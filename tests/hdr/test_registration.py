@@ -137,6 +137,22 @@ def test_values_that_contradict_the_scan_are_refused():
     np.testing.assert_array_equal(consistent(values, ldr, 0.35), [True, False, True, False, False])
 
 
+def test_the_consistency_rule_at_its_boundaries():
+    """hdr.consistency t = 0.35 at its edges (pipeline.consistent's docstring): a clipped
+    channel may come out down to (1 - t / 2) of its clip level, a measured one within t of it
+    plus two 8-bit steps."""
+    t = 0.35
+    clip = np.ones((1, 3), np.float32)
+    for v, ok in ((1.0 - 0.5 * t + 1e-3, True), (1.0 - 0.5 * t - 1e-3, False),
+                  (1.0 - t + 1e-3, False)):
+        assert consistent(np.full((1, 3), v, np.float32), clip, t)[0] == ok, v
+    ldr = np.array([[1.0, 0.5, 0.5]], np.float32)
+    slack = t * 0.5 + 2.0 / 255.0
+    for g, ok in ((0.5 + slack - 1e-4, True), (0.5 + slack + 1e-4, False),
+                  (0.5 - slack + 1e-4, True), (0.5 - slack - 1e-4, False)):
+        assert consistent(np.array([[3.0, g, 0.5]], np.float32), ldr, t)[0] == ok, g
+
+
 def test_a_photo_that_neither_registers_nor_matches_is_refused():
     """Registration fails and PatchMatch finds almost no close match: another room, refused
     with one line that says what to do; with registration off the matching runs anyway."""

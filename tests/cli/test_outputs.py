@@ -65,6 +65,12 @@ CASES = {
     "expand --report is the input cloud": (lambda d: _expand(d, "--out", str(d / "h.ply"),
                                                              "--report", str(d / "room.ply")),
                                            "room.ply", "--cloud"),
+    "expand --report is the photo": (lambda d: _expand(d, "--out", str(d / "h.ply"),
+                                                       "--report", str(d / "photo.exr")),
+                                     "photo.exr", "--photo"),
+    "expand --report is the capture cameras": (
+        lambda d: _expand(d, "--out", str(d / "h.ply"), "--report", str(d / "cams.json")),
+        "cams.json", "--cameras"),
     "evaluate --json is the ground truth": (
         lambda d: ["evaluate", "expansion", "--cloud", str(d / "room.ply"), "--gt", str(d / "gt.ply"),
                    "--no-render", "--json", str(d / "gt.ply")], "gt.ply", "--gt"),

@@ -166,3 +166,18 @@ def test_the_machine_s_refusals_read_as_one_line():
         "/out/a\\nb.exr: No space left on device"
     assert refusal(MemoryError()).startswith("out of memory (an allocation failed)")
     assert refusal(ValueError("x")) is None
+
+
+def test_an_allocation_the_machine_refuses_is_one_line_and_exit_3():
+    """A real MemoryError from inside a command (numpy, under an address-space limit set in the
+    child only) reaches the command line's last guard: one line saying so, exit 3, no traceback
+    - not "internal error" (exit 1), which is kept for bugs."""
+    def limit():
+        cap = int(0.8 * 2 ** 30)
+        resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    run = subprocess.run([sys.executable, "-m", "app", "bench", "bsh", "--points", "1500000",
+                          "--repeat", "1"], env=env, cwd=ROOT, preexec_fn=limit,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 3, run.stderr
+    assert "out of memory" in _one_line(run.stderr)

@@ -617,3 +617,21 @@ def test_generated_truncated_or_corrupted_images(ext, cut, noise, tmp_path):
         assert "\n" not in str(err) and str(p) in str(err), str(err)
         return
     assert np.isfinite(out.rgb).all()
+
+
+def test_the_documented_limits_hold_at_their_edges():
+    """README's limits table, at the value itself and one past it: a camera side of 16384 is
+    accepted and 16385 refused (usage, exit 2), JSON nested 64 levels parses and 65 is refused."""
+    from app.camera import parse_size
+    from app.errors import UsageError
+    from app.io.schema import parse_json
+    assert parse_size("16384x1") == (16384, 1) and parse_size("1x16384") == (1, 16384)
+    for bad in ("16385x1", "1x16385", "0x1"):
+        with pytest.raises(UsageError):
+            parse_size(bad)
+    want: list = []
+    for _ in range(63):
+        want = [want]
+    assert parse_json("[" * 64 + "]" * 64, "deep.json") == want
+    with pytest.raises(ScanlightError, match="nested deeper than 64 levels"):
+        parse_json("[" * 65 + "]" * 65, "deep.json")

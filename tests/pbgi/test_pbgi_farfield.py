@@ -93,6 +93,31 @@ def test_blocks_of_a_dithered_shifted_grid_cover_each_receiver_once():
         assert np.allclose(pos[of == j].mean(0), b["centre"][j])
 
 
+def test_a_dithered_receiver_joins_only_a_block_whose_cone_holds_its_normal():
+    """A crease down the middle of the image (two faces at 90 degrees): the dither moves
+    receivers near a block's edge into the neighbouring block, but never across the crease -
+    every shared receiver's normal stays within max_cone of its block's axis, guests included,
+    so a face never walks the far field in the frame of the other."""
+    w = h = 64
+    px = np.arange(w * h)
+    x, y = px % w, px // w
+    left = x < 31                      # with the grid offset by 1: an edge of every level's blocks
+    u = (x - 31) * 0.01
+    pos = np.where(left[:, None], np.c_[u, y * 0.01, np.zeros(w * h)],
+                   np.c_[np.zeros(w * h), y * 0.01, -u])
+    nrm = np.where(left[:, None], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    b = choose_blocks(px, pos, nrm, w, 24, 1.0, max_level=3, max_cone=0.1, offset=(1, 2),
+                      dither=True)
+    of = b["block_of"]
+    has = of != NONE
+    assert has.mean() > 0.5
+    cosines = np.einsum("ij,ij->i", nrm[has], b["axis"][of[has].astype(np.int64)])
+    assert cosines.min() >= np.cos(0.1) - 1e-9
+    assert (left[has] == (nrm[has, 2] > 0.5)).all()
+    plain = choose_blocks(px, pos, nrm, w, 24, 1.0, max_level=3, max_cone=0.1, offset=(1, 2))
+    assert not np.array_equal(plain["size"], b["size"])      # the dither did move receivers
+
+
 def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     """Constant radiance all around: a node lost between the far walk of a block and the near
     walks of its receivers would leave a dark hole. Per pixel, Hybrid with sharing stays within

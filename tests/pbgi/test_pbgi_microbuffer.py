@@ -214,3 +214,37 @@ def test_microbuffer_entries_are_visible_nodes(room):
         omega = 2 * np.pi * (1 - np.sqrt(np.maximum(1 - r ** 2 / np.einsum("ij,ij->i", c, c), 0)))
         assert ((omega <= 4 * omega_micro(m) * 1.001) | nodes["is_leaf"][node[ok]]).all()
     assert filled_weight / len(range(0, n, max(1, n // 25))) > 0.99
+
+
+def test_the_back_face_cull_is_conservative_and_tight(ctx):
+    """cut_back_facing (tests/shaders/back_facing_check.glsl) against the geometry it stands
+    for: a node seen in direction l within angle b, its normals within alpha of the cone's
+    axis, shows only back faces exactly when every (direction, normal) pair has a positive dot,
+    i.e. when angle(l, axis) + alpha + b < 90 degrees (the smallest dot is the cosine of that
+    sum). A cull outside it drops light the receiver sees (conservative); one missing well
+    inside it walks a node for nothing (tight: within 1e-3 rad)."""
+    from app.render.programs import load_compute
+    from tests.support import TEST_SHADERS
+    from tests.support.compute import run_ssbo
+    rng = np.random.default_rng(5)
+    n = 20000
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    alpha = rng.uniform(0.0, 1.2, n)
+    b = rng.uniform(0.0, 1.2, n)
+    theta = rng.uniform(0.0, np.pi, n)          # angle(l, axis), dense near the boundary too
+    side = np.cross(axis, rng.normal(size=(n, 3)))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    l = np.cos(theta)[:, None] * axis + np.sin(theta)[:, None] * side
+    cases = np.zeros((n, 2, 4), np.float32)
+    cases[:, 0, :3], cases[:, 0, 3] = axis, np.cos(alpha)
+    cases[:, 1, :3], cases[:, 1, 3] = l, np.sin(b)
+    prog = load_compute(ctx, TEST_SHADERS / "back_facing_check.glsl")
+    out = np.frombuffer(run_ssbo(ctx, prog, [cases], n * 4, (n + 15) // 16, u_count=n),
+                        np.uint32)
+    assert np.all(out >= 2), "some invocations did not complete"
+    culled = (out & 1) == 1
+    reach = theta + alpha + b                    # the widest angle between a direction and a normal
+    assert not np.any(culled & (reach > np.pi / 2 + 1e-3)), "a node with front faces was culled"
+    assert not np.any(~culled & (reach < np.pi / 2 - 1e-3)), "a back-facing node was kept"
+    assert 0.1 < culled.mean() < 0.9

@@ -9,7 +9,6 @@ EFBIG path a full disk takes (ENOSPC), and needs no root; it is set in the child
 
 from __future__ import annotations
 
-import json
 import os
 import resource
 import subprocess

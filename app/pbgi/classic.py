@@ -15,7 +15,7 @@ import numpy as np
 
 from app.pbgi.gpu_layout import (CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT, WORKGROUP,
                                  dispatch_groups)
-from app.pbgi.microbuffer import entries, omega_micro
+from app.pbgi.microbuffer import entries, omega_horizon, omega_micro
 from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
 
@@ -24,14 +24,14 @@ class ClassicCut(CutFinder):
     """Depth-first cut finder. Budgets per dispatch and receiver: ``steps`` node visits,
     ``list_cap`` accepted nodes and ``splat_budget`` micro-buffer entry tests, together below
     LOOP_LIMIT (checked). ``stop_factor`` = 4 is Section 5.3's 4 Omega; nodes straddling the
-    receiver's horizon are refined down to ``horizon_factor`` x Omega. ``workgroup``: the
+    receiver's horizon are refined down to microbuffer.HORIZON_OMEGA. ``workgroup``: the
     walk's local size (CUT_WORKGROUP in pbgi_classic.glsl; Hybrid's block walk takes a smaller
     one, app/pbgi/farfield.py: FAR_WORKGROUP)."""
 
     clears_microbuffers = False       # the walk writes only the entries its nodes cover
 
     def __init__(self, ctx, steps: int = 16384, splat_budget: int = 32768, list_cap: int = 256,
-                 stop_factor: float = 4.0, horizon_factor: float = 1.0, max_rounds: int = 100000,
+                 stop_factor: float = 4.0, max_rounds: int = 100000,
                  defines: dict | None = None, workgroup: int = WORKGROUP):
         if steps + splat_budget + list_cap >= LOOP_LIMIT:
             raise ValueError("steps + splat_budget must stay below llvmpipe's loop limit")
@@ -42,7 +42,7 @@ class ClassicCut(CutFinder):
                                           **({} if self.workgroup == WORKGROUP
                                              else {"CUT_WORKGROUP": self.workgroup})})
         self.steps, self.splat_budget = int(steps), int(splat_budget)
-        self.stop_factor, self.horizon_factor = float(stop_factor), float(horizon_factor)
+        self.stop_factor = float(stop_factor)
         self.max_rounds = int(max_rounds)
         self.state = None
         self.counter = ctx.buffer(reserve=4)
@@ -82,9 +82,8 @@ class ClassicCut(CutFinder):
         prog["u_first"] = first
         prog["u_count"] = count
         prog["u_m"] = m
-        om = omega_micro(m)
-        prog["u_omega_stop"] = self.stop_factor * om
-        prog["u_omega_horizon"] = min(self.horizon_factor, self.stop_factor) * om
+        prog["u_omega_stop"] = self.stop_factor * omega_micro(m)
+        prog["u_omega_horizon"] = omega_horizon(m, self.stop_factor)
         prog["u_steps"] = self.steps
         prog["u_splat_budget"] = self.splat_budget
         if "u_inv_cell_area" in prog:

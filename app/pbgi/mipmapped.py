@@ -52,7 +52,7 @@ from app.pbgi.gmip import PIXEL_BYTES, WIDTH, MipPyramid, image_rows, to_rows, z
 from app.pbgi.gpu_layout import (FINISH_STATE, HEAD, IMAGE, ITEM, NIL, PAIR, PAIR_COUNTERS,
                                  LOOP_LIMIT, RECEIVER, SSBO, WALK_CUT_SHORT, WALK_DONE,
                                  dispatch_groups)
-from app.pbgi.microbuffer import entries, omega_micro
+from app.pbgi.microbuffer import entries, omega_horizon, omega_micro
 from app.pbgi.modebase import (AllocationError, Batch, CutFigures, CutFinder, MicroBufferMode,
                                RenderParams)
 from app.pbgi.stats import PairFigures
@@ -101,17 +101,17 @@ class PairRefiner(CutFinder):
     """The (node, pixel) pair engine; ``omega_tr_factor`` = 0 is Mipmapped, > 0 Hybrid.
 
     ``steps``, ``splat_budget`` and ``list_cap`` are the finishing walk's per-dispatch budgets
-    (Classic's, below llvmpipe's loop limit); ``stop_factor`` / ``horizon_factor`` Classic's
-    thresholds; ``pixel_factor`` scales the paper's node-vs-pixel-cone test; ``cull_margin``
-    (radians) is how far a coarse cull must clear its test (float32 slack); ``stream_share`` of
-    the budget (at most ``max_stream_bytes``) caps each stream; ``alloc(kind, *args)`` makes GL
+    (Classic's, below llvmpipe's loop limit); ``stop_factor`` Classic's threshold (the horizon's:
+    microbuffer.omega_horizon); ``pixel_factor`` scales the paper's node-vs-pixel-cone test;
+    ``cull_margin`` (radians) is how far a coarse cull must clear its test (float32 slack);
+    ``stream_share`` of the budget (at most ``max_stream_bytes``) caps each stream; ``alloc(kind, *args)`` makes GL
     objects (tests inject refusals); ``defines`` go to every shader (profiling)."""
 
     clears_microbuffers = False       # the walks write only the entries their nodes cover
 
     def __init__(self, ctx, omega_tr_factor: float = 0.0, steps: int = 16384,
                  splat_budget: int = 32768, list_cap: int = 256, stop_factor: float = 4.0,
-                 horizon_factor: float = 1.0, pixel_factor: float = 1.0,
+                 pixel_factor: float = 1.0,
                  cull_margin: float = 1e-3, stream_share: float = 1.0 / 16.0,
                  max_stream_bytes: int = 64 << 20, max_rounds: int = 100000, alloc=None,
                  defines: dict | None = None):
@@ -120,7 +120,7 @@ class PairRefiner(CutFinder):
         self.ctx = ctx
         self.omega_tr_factor = float(omega_tr_factor)
         self.steps, self.splat_budget = int(steps), int(splat_budget)
-        self.stop_factor, self.horizon_factor = float(stop_factor), float(horizon_factor)
+        self.stop_factor = float(stop_factor)
         self.pixel_factor, self.cull_margin = float(pixel_factor), float(cull_margin)
         self.stream_share, self.max_stream_bytes = float(stream_share), int(max_stream_bytes)
         self.max_rounds = int(max_rounds)
@@ -228,7 +228,7 @@ class PairRefiner(CutFinder):
 
         om = omega_micro(m)
         omega_stop = self.stop_factor * om
-        omega_horizon = min(self.horizon_factor, self.stop_factor) * om
+        omega_h = omega_horizon(m, self.stop_factor)
         inv_cell = 1.0 / max(cell_size, 1e-9) ** 2
         receivers.bind_to_storage_buffer(SSBO.RECEIVERS)
         counters.bind_to_storage_buffer(SSBO.COUNTERS)
@@ -239,10 +239,10 @@ class PairRefiner(CutFinder):
         heads.bind_to_image(IMAGE.HEADS, read=True, write=True)
         self.pyramid.bind()
         _set(self.refine, u_first=first, u_m=m, u_omega_stop=omega_stop,
-             u_omega_horizon=omega_horizon, u_omega_tr=self.omega_tr_factor * om,
+             u_omega_horizon=omega_h, u_omega_tr=self.omega_tr_factor * om,
              u_pixel_factor=self.pixel_factor, u_cull_margin=self.cull_margin)
         _set(self.finish, u_first=first, u_count=count, u_m=m, u_omega_stop=omega_stop,
-             u_omega_horizon=omega_horizon, u_steps=self.steps, u_splat_budget=self.splat_budget,
+             u_omega_horizon=omega_h, u_steps=self.steps, u_splat_budget=self.splat_budget,
              u_inv_cell_area=inv_cell)
         nodes.set_uniforms(self.finish)
         self.finish_init["u_count"] = int(topo.offsets[1])

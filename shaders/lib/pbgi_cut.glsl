@@ -12,11 +12,12 @@
 //   * solid angle (eq. 4) 2 pi (1 - sqrt(d^2 - r^2) / d), computed as 2 pi s / (1 + sqrt(1 - s))
 //     with s = r^2 / d^2 (no cancellation, and no sqrt of a negative); a receiver inside the
 //     sphere (d <= r) sees it everywhere: descend, or rasterise a leaf into every micro-pixel;
-//   * accept when Omega(A) <= omega_stop (= 4 Omega, Section 5.3) - tightened to omega_horizon
-//     for a node straddling the horizon, so nodes cut by the horizon are small (the rasteriser
-//     only ever uses directions above the horizon, and rim micro-pixels are split into thin
-//     elevation bands, so a straddling node cannot smear light from below the horizon over a
-//     wide edge micro-pixel) - or when A is a leaf; else descend.
+//   * accept when Omega(A) <= omega_stop (= 4 Omega, Section 5.3) - capped at omega_horizon
+//     for a node straddling the horizon (app/pbgi/microbuffer.py: omega_horizon, at most
+//     2 pi / 64), so nodes cut by the horizon are small where the rim bands are coarse (the
+//     rasteriser only ever uses directions above the horizon, and rim micro-pixels are split
+//     into elevation bands, so a straddling node cannot smear light from below the horizon over
+//     a wide edge micro-pixel) - or when A is a leaf; else descend.
 //
 // Needs: lib/bsh_textures.glsl, lib/microbuffer.glsl. CUT_LIST_CAP sizes the accepted list.
 #ifndef SCANLIGHT_PBGI_CUT_GLSL

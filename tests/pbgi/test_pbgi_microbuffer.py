@@ -156,7 +156,7 @@ CAM = S.look((0.3, 1.0, 0.9), (0.0, 0.8, 0.0), 12, 40)
 
 
 def test_sliced_walk_fills_the_same_microbuffers(room):
-    """A walk cut into many tiny dispatches (37 nodes, 4 accepted nodes per dispatch) resumes
+    """A walk cut into many tiny dispatches (37 nodes, 3 accepted nodes per dispatch) resumes
     exactly where it stopped: every micro-pixel ends up identical to a few large dispatches."""
     m = 16
     mat = S.diffuse()
@@ -165,7 +165,7 @@ def test_sliced_walk_fills_the_same_microbuffers(room):
     assert res.stats.completed and res.stats.rounds <= 3
     mode = room.mode_for(RenderParams(mode="classic", microbuffer=m))
     default, mode.cut = mode.cut, ClassicCut(room.ctx, steps=37, splat_budget=entries(m),
-                                             list_cap=4)
+                                             list_cap=3)
     try:
         room.forget_microbuffers()
         res2 = room.render(CAM, [mat], RenderParams(mode="classic", microbuffer=m))
@@ -248,3 +248,16 @@ def test_the_back_face_cull_is_conservative_and_tight(ctx):
     assert not np.any(culled & (reach > np.pi / 2 + 1e-3)), "a node with front faces was culled"
     assert not np.any(~culled & (reach < np.pi / 2 - 1e-3)), "a back-facing node was kept"
     assert 0.1 < culled.mean() < 0.9
+
+
+def test_the_horizon_cap_binds_only_where_the_rim_bands_are_coarse():
+    """A node straddling the horizon is accepted up to the stop rule's 4 Omega, capped at
+    2 pi / 64 (microbuffer.HORIZON_OMEGA): Omega itself at M = 8, the stop rule untouched from
+    M = 16 up (test_pbgi_reference.py measures both ends)."""
+    from app.pbgi.microbuffer import HORIZON_OMEGA, omega_horizon
+    assert HORIZON_OMEGA == pytest.approx(2 * np.pi / 64)
+    assert omega_horizon(8, 4.0) == pytest.approx(omega_micro(8))
+    for m in (16, 24, 32):
+        assert omega_horizon(m, 4.0) == pytest.approx(4.0 * omega_micro(m))
+    assert omega_horizon(16, 8.0) == pytest.approx(HORIZON_OMEGA)
+    assert omega_horizon(8, 0.5) == pytest.approx(0.5 * omega_micro(8))

@@ -284,3 +284,29 @@ def test_pruning_needs_both_similar_colour_and_similar_normals():
     check_invariants(h2, p, nrm, c2)
     assert h2.stats["cluster_leaves"] >= 2
     assert not np.intersect1d(h2.point_node[:n], h2.point_node[n:]).size
+
+
+def test_pruning_measures_each_normal_against_the_cone_axis():
+    """A uniformly coloured plane whose points hold two normals 40 degrees apart (8% tilted).
+    The prune test asks for a mean dot(normal, cone axis) above tn = 0.98 (Section 5.1); the
+    merged cone of both normals has its axis at their bisector, 20 degrees from each, where the
+    similarity is cos 20 = 0.94, so every cluster stays on one normal. The length of the mean
+    normal, 0.983, would have merged the whole plane into one cluster of similarity 0.94."""
+    rng = np.random.default_rng(16)
+    n = 8000
+    a = rng.random((n, 2))
+    p = np.column_stack([a[:, 0], np.zeros(n), a[:, 1]])
+    tilted = rng.random(n) < 0.08
+    t = np.radians(40.0)
+    nrm = np.where(tilted[:, None], [0.0, np.cos(t), np.sin(t)], [0.0, 1.0, 0.0])
+    c = np.full((n, 3), 0.5, np.float32)
+    h = build_bsh(p, nrm, c)
+    d = check_invariants(h, p, nrm, c)
+    full = build_bsh(p, nrm, c, prune=False)             # a cluster leaf spans several cells
+    pairs = np.unique(np.stack([h.point_node, full.point_node], axis=1), axis=0)
+    cluster = d["is_leaf"] & (np.bincount(pairs[:, 0], minlength=len(h.nodes)) > 1)
+    assert cluster.sum() == h.stats["cluster_leaves"] > 100
+    _, sim = spread_and_similarity(d, h, c, nrm)
+    assert (sim[cluster] > 0.98 - 2e-3).all()
+    both = np.intersect1d(h.point_node[tilted], h.point_node[~tilted])
+    assert not cluster[both].any()

@@ -18,6 +18,16 @@ def test_landis_is_identity_below_threshold_continuous_and_reaches_lmax():
     assert abs(lw[i] - lw[i - 1]) < 0.01                  # no jump at the threshold
 
 
+def test_landis_interior_values_follow_the_published_curve():
+    """Inside the expanded range, Lw = (1 - k) Ld + k Lmax Ld with k = ((Ld - R) / (1 - R))^a
+    (Landis 2002, as Banterle et al. give it): at Ld 0.95, R 0.9, Lmax 50, k = 0.5^a, so
+    a = 2 gives 0.25 and Lw = 12.5875, a = 3 gives 0.125 and Lw = 6.76875."""
+    assert float(itmo.landis(np.array([0.95]), 50.0, 0.9, 2.0)[0]) == pytest.approx(12.5875,
+                                                                                   rel=1e-12)
+    assert float(itmo.landis(np.array([0.95]), 50.0, 0.9, 3.0)[0]) == pytest.approx(6.76875,
+                                                                                   rel=1e-12)
+
+
 def test_inverse_reinhard_inverts_reinhard():
     """Reinhard: Ld = Lw (1 + Lw / Lwhite^2) / (1 + Lw); with Lwhite = Lmax the inverse maps 1 to
     Lmax and small values to themselves."""

@@ -204,6 +204,25 @@ def test_gltf_node_hierarchy_and_mirroring(tmp_path):
     assert {tuple(np.round(n, 6)) for n in m.normals} == {(0.0, -1.0, 0.0), (0.0, 0.0, 1.0)}
 
 
+def test_gltf_trs_is_translate_rotate_scale_and_normals_take_the_inverse_transpose(tmp_path):
+    """The glTF spec's node matrix is T R S (scale first), and a normal goes through the inverse
+    transpose of the linear part: with a non-uniform scale and a tilted normal, both differ from
+    the other orders (S R, the plain matrix). The expectation is built here from the spec."""
+    g = Gltf()
+    tilt = np.tile([1.0, 0.0, 1.0], (4, 1)) / np.sqrt(2.0)
+    quad = g.mesh(g.primitive(QUAD_POS, QUAD_FACES, tilt))
+    angle = np.pi / 2
+    g.node(mesh=quad, rotation=quat([0, 0, 1], angle), scale=[2, 1, 1], translation=[1, 2, 3])
+    g.write_glb(tmp_path / "trs.glb")
+    m = load_mesh(tmp_path / "trs.glb")
+    c, s = np.cos(angle), np.sin(angle)
+    lin = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.diag([2.0, 1.0, 1.0])
+    np.testing.assert_allclose(m.positions, QUAD_POS @ lin.T + [1, 2, 3], atol=1e-6)
+    n = tilt @ np.linalg.inv(lin)                # rows: (inv(L)^T n)^T
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    np.testing.assert_allclose(m.normals, n, atol=1e-6)
+
+
 def test_gltf_materials_map_to_disney(tmp_path):
     g = Gltf()
     tex8 = np.zeros((2, 3, 3), np.uint8)

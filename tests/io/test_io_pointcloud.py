@@ -406,3 +406,27 @@ def test_save_rejects_other_formats(tmp_path):
     with pytest.raises(ScanlightError, match=r"saved as \.ply only"):
         save_cloud(PointCloud(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3))),
                    tmp_path / "a.pcd")
+
+
+@pytest.mark.parametrize("fmt", ["binary_little_endian", "binary_big_endian", "ascii"])
+def test_elements_before_the_vertices_are_skipped_whole(tmp_path, fmt):
+    """A scanner's PLY may put other elements first (three camera records here, 12 bytes each
+    in binary): the reader skips all of their bytes, so the vertices come back as written."""
+    e = ">" if fmt == "binary_big_endian" else "<"
+    pos = np.array([[1.5, -2.0, 3.25], [0.5, 4.0, -1.0]])
+    nrm = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    cams = np.array([[9.0, 9.0, 1.0], [8.0, 7.0, 6.0], [5.0, 4.0, 3.0]])
+    header = ["ply", f"format {fmt} 1.0", "element camera 3", "property float k0",
+              "property float k1", "property float k2", "element vertex 2"]
+    header += [f"property float {k}" for k in ("x", "y", "z", "nx", "ny", "nz")]
+    header.append("end_header")
+    verts = np.c_[pos, nrm]
+    if fmt == "ascii":
+        data = "".join(" ".join(repr(float(x)) for x in r) + "\n" for r in [*cams, *verts])
+        data = data.encode()
+    else:
+        data = cams.astype(e + "f4").tobytes() + verts.astype(e + "f4").tobytes()
+    (tmp_path / "scan.ply").write_bytes(("\n".join(header) + "\n").encode() + data)
+    back = load_cloud(tmp_path / "scan.ply")
+    np.testing.assert_array_equal(back.positions, pos)
+    np.testing.assert_array_equal(back.normals, nrm)

@@ -54,7 +54,8 @@ def test_the_parts_recombine_to_the_image(demo_relighter, mode, mat):
     (GOLD, dict(GOLD, base_color=(0.95, 0.93, 0.88))),                       # gold -> silver
     (dict(roughness=0.9, sheen=0.0), dict(roughness=0.9, sheen=0.8, sheen_tint=1.0)),
     (dict(roughness=0.4, clearcoat=0.3), dict(roughness=0.4, clearcoat=1.0, specular=0.9)),
-], ids=["colour", "metal", "silver", "sheen", "coat"])
+    (dict(roughness=0.9, sheen=0.8), dict(roughness=0.9, sheen=0.8, metallic=0.5)),
+], ids=["colour", "metal", "silver", "sheen", "coat", "sheen-metal"])
 def test_a_recombined_edit_is_the_new_gather(demo_relighter, mode, old, new):
     """Parts of material A recombined with B against B's own gather on the same cut: equal up to
     float rounding (1e-3 of the mean per pixel; the lobe buffers' noise is the same noise, the

@@ -28,6 +28,8 @@ HELD_OUT = ROOM.with_name("city.exr")
 pytestmark = pytest.mark.skipif(not ROOM.exists(), reason="../shared/data not present")
 
 TARGET = {"smooth": 0.15, "glossy": 0.10}      # 4x4-pooled relative RMSE (the targets)
+GUARD = 0.06              # ... and what the renderer holds today, with a margin (measured at most
+#                           4.6%; a lobe walk stopped 16x coarser gave 8.7% at metal 0.2)
 PEAK_LIMIT = 150.0        # periodic_peak: a dot grid measured 1355, noise 8-60 after
 PEAK_RATIO_LIMIT = 2.0    # largest pixel over the reference's: the dots were 20x
 
@@ -89,7 +91,7 @@ def test_roughness_sweep_matches_the_path_tracer(room_sweep, mode, kind):
         target = TARGET["glossy" if r >= 0.05 else "smooth"]
         where = f"{room} {mode} {kind} roughness {r}: {err}"
         assert stats.completed, where
-        assert err["rel_rmse_4x4"] <= target, where
+        assert err["rel_rmse_4x4"] <= min(target, GUARD), where
         assert err["periodic_peak"] <= PEAK_LIMIT, where
         assert err["peak_ratio"] <= PEAK_RATIO_LIMIT, where
 

@@ -187,3 +187,43 @@ def test_lobe_rect_anisotropic_axis_and_outside(rect_check):
     rect, hits, miss, _, cells = rect_check(C, nodes)
     assert rect[0] & 255 == 0 and rect[0] >> 24 == 12 and hits[0] > 0 and miss[0] == 0
     assert rect[1] == 0xFFFFFFFF and hits[1] == 0
+
+
+def test_each_pixel_and_pass_turns_its_lobe_frame(ctx):
+    """The lobe micro-buffer's azimuth (lib/lobe.glsl: lobe_frame's phi0) is uniform over the
+    pixels (Kolmogorov-Smirnov against U(0, 2 pi), p > 0.01), independent between
+    neighbouring pixels (correlation of consecutive pixels' angles below 0.1) and drawn anew
+    in every pass (no pixel keeps its angle from pass 0 to pass 1): the quantisation of a
+    narrow lobe is noise that the passes average, not a grid (seed 001, Section 2.3)."""
+    from scipy.stats import kstest
+    from app.render.programs import load_compute
+    from tests.support import TEST_SHADERS
+    pixels, passes = 4096, 2
+    n = pixels * passes
+    prog = load_compute(ctx, TEST_SHADERS / "lobe_frame_check.glsl")
+    phi = np.frombuffer(run_ssbo(ctx, prog, [], n * 4, (n + 63) // 64, u_pixels=pixels,
+                                 u_count=n), np.float32).reshape(passes, pixels)
+    assert np.all((phi >= 0) & (phi < 2 * np.pi))
+    assert kstest(phi[0] / (2 * np.pi), "uniform").pvalue > 0.01
+    assert abs(np.corrcoef(phi[0, :-1], phi[0, 1:])[0, 1]) < 0.1
+    assert not np.any(np.isclose(phi[0], phi[1], atol=1e-6))
+
+
+def test_the_lobe_cells_solid_angles_add_up_to_the_domain(ctx):
+    """Each micro-pixel of a lobe buffer weighs its ray by its solid angle in half-vector space
+    (lib/lobe.glsl: lobe_omega_h, the warp's Jacobian). Summed over the cells (rings x 64
+    sectors, each cell's mean over the points its jittered ray can take) they are the domain's
+    cap, 2 pi (1 - cos theta_max), within 0.5%: one
+    lobe, a wide one, and a two-piece buffer (a narrow lobe over a wide one)."""
+    from app.render.programs import load_compute
+    from tests.support import TEST_SHADERS
+    cases = np.array([[0.2, 0.2, 64, 0], [0.6, 0.6, 64, 0], [0.02, 0.5, 64, 0],
+                      [0.05, 0.05, 48, 0]], np.float32)
+    prog = load_compute(ctx, TEST_SHADERS / "lobe_solid_angle_check.glsl")
+    out = np.frombuffer(run_ssbo(ctx, prog, [cases], len(cases) * 16, 1, u_count=len(cases)),
+                        np.float32).reshape(-1, 4)
+    assert np.all(out[:, 3] == 1)
+    cap = 2 * np.pi * (1 - 1 / np.sqrt(1 + out[:, 1].astype(np.float64)))
+    np.testing.assert_allclose(out[:, 0], cap, rtol=5e-3)
+    assert out[2, 2] < cases[2, 2] and out[0, 2] == cases[0, 2]     # split / one piece
+    assert cap.min() > 0.05 and cap.max() > 2.0                      # narrow to wide domains

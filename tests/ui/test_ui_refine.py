@@ -483,3 +483,39 @@ def test_recolour_relights_every_refined_texel_and_the_preview(passes):
     np.testing.assert_array_equal(crossed.full, before)
     plain = ProgressiveGI(lambda c, t, p=0, layer=None: sphere_image(c, t))
     assert plain.recolour({0}, None) is False
+
+
+def test_a_recolour_between_passes_keeps_the_running_mean_right():
+    """An edit that recombines while the passes still run: the texels refined so far are
+    relit, their running sums too, so the passes after the edit (rendered with the new
+    material) average with them. Pass k renders k + 1 times the colour; material 1 is edited to
+    twice its light after the first pass: its texels end at 2 x (1 + 2 + 3) / 3 = 4 x the
+    colour, material 0's at 2 x."""
+    from app.pbgi.gather_parts import empty
+    scale = {0: 1.0, 1: 1.0}
+
+    def render(cam, tile, pass_index=0, layer=None):
+        img = sphere_image(cam, tile)
+        x0, y0, w, h = tile
+        parts = empty((h, w))
+        parts["diffuse"] = img[..., :3] * (pass_index + 1)
+        right = (np.arange(x0, x0 + w) >= cam.width // 2)[None, :].repeat(h, 0)
+        parts["material"] = right
+        img[..., :3] = parts["diffuse"] * np.where(right, scale[1], scale[0])[..., None]
+        return img, parts
+
+    gi = ProgressiveGI(render)
+    gi.restart(CAM, screen_rect(CAM, CENTRE - RADIUS, CENTRE + RADIUS), 0.25, passes=3)
+    while gi.pass_index < 1:
+        gi.step(1e9)
+    base = sphere_image(CAM, (0, 0, CAM.width, CAM.height))
+    assert gi.recolour({1}, lambda rec, i: 2.0 * rec["diffuse"])
+    scale[1] = 2.0
+    gi.finish()
+    hit = base[..., 3] > 0.5
+    right = np.zeros(hit.shape, bool)
+    right[:, CAM.width // 2:] = True
+    np.testing.assert_allclose(gi.full[..., :3][hit & right], 4.0 * base[..., :3][hit & right],
+                               rtol=1e-5)
+    np.testing.assert_allclose(gi.full[..., :3][hit & ~right], 2.0 * base[..., :3][hit & ~right],
+                               rtol=1e-5)

@@ -266,6 +266,32 @@ def test_the_papers_constants_in_closed_form(gl_eval):
         np.testing.assert_allclose(got, np.full(3, peak), rtol=1e-10)
 
 
+def test_subsurface_is_hanrahan_krueger_in_closed_form(gl_eval):
+    """Burley's subsurface lobe (the Hanrahan-Krueger approximation) at V = N, L at cos theta =
+    mu, roughness r: F_ss90 = (l.h)^2 r with l.h = cos(theta / 2), F_ss = 1 + (F_ss90 - 1)
+    (1 - mu)^5 (the view's own Schlick weight is 0), and f = base / pi x 1.25 (F_ss (1 / (mu +
+    1) - 0.5) + 0.5): 0.625 base / pi straight down. Its constants (1.25, 0.5) were checked only
+    twin against twin."""
+    base = np.array([0.2, 0.5, 0.8])
+    mu = np.linspace(1.0, 0.05, 20)
+    Ld = np.stack([np.sqrt(1 - mu ** 2), np.zeros_like(mu), mu], -1)
+    n = len(mu)
+    rep = lambda a: np.tile(a, (n, 1)).astype(np.float32)  # noqa: E731
+    for r in (0.3, 1.0):
+        fss = 1 + ((1 + mu) / 2 * r - 1) * (1 - mu) ** 5
+        expected = base / np.pi * (1.25 * (fss * (1 / (mu + 1) - 0.5) + 0.5))[:, None]
+        p = B.pack_params(base_color=base, subsurface=1.0, roughness=r)
+        np.testing.assert_allclose(B.principled_brdf(p, Ld, EZ, EZ, EX, EY, lobes=("diffuse",)),
+                                   expected, rtol=1e-10)
+        lim = dict(LAMBERT_LIMIT, subsurface=1.0, roughness=r)
+        p = B.pack_params(base_color=base, **lim)
+        spec = B.principled_brdf(p, Ld, EZ, EZ, EX, EY, lobes=("specular",))  # specular 0
+        g = gl_eval(rep(p), Ld.astype(np.float32), rep(EZ), rep(EZ), rep(EX), rep(EY))[:, 0, :3]
+        np.testing.assert_allclose(g, expected + spec, rtol=2e-5, atol=1e-7)
+    assert np.allclose(B.principled_brdf(B.pack_params(base_color=base, subsurface=1.0), EZ, EZ,
+                                         EZ, EX, EY, lobes=("diffuse",)), 0.625 * base / np.pi)
+
+
 def test_albedo_analytic_cases():
     """Directional albedo (MC, mixture sampling) at V = N against closed forms:
     diffuse lobe 1 + (10 r - 4)/168 (base 1; from the Beta integrals of mu (1 - mu)^5);

@@ -24,9 +24,10 @@ class ClassicCut(CutFinder):
     """Depth-first cut finder. Budgets per dispatch and receiver: ``steps`` node visits,
     ``list_cap`` accepted nodes and ``splat_budget`` micro-buffer entry tests, together below
     LOOP_LIMIT (checked). ``stop_factor`` = 4 is Section 5.3's 4 Omega; nodes straddling the
-    receiver's horizon are refined down to microbuffer.HORIZON_OMEGA. ``workgroup``: the
-    walk's local size (CUT_WORKGROUP in pbgi_classic.glsl; Hybrid's block walk takes a smaller
-    one, app/pbgi/farfield.py: FAR_WORKGROUP)."""
+    receiver's horizon stop there too, but never above microbuffer.HORIZON_OMEGA
+    (``omega_horizon``). ``workgroup``: the walk's local size (CUT_WORKGROUP in
+    pbgi_classic.glsl; Hybrid's block walk takes a smaller one, app/pbgi/farfield.py:
+    FAR_WORKGROUP)."""
 
     clears_microbuffers = False       # the walk writes only the entries its nodes cover
 

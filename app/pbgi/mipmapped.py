@@ -104,8 +104,9 @@ class PairRefiner(CutFinder):
     (Classic's, below llvmpipe's loop limit); ``stop_factor`` Classic's threshold (the horizon's:
     microbuffer.omega_horizon); ``pixel_factor`` scales the paper's node-vs-pixel-cone test;
     ``cull_margin`` (radians) is how far a coarse cull must clear its test (float32 slack);
-    ``stream_share`` of the budget (at most ``max_stream_bytes``) caps each stream; ``alloc(kind, *args)`` makes GL
-    objects (tests inject refusals); ``defines`` go to every shader (profiling)."""
+    ``stream_share`` of the budget (at most ``max_stream_bytes``) caps each stream;
+    ``alloc(kind, *args)`` makes GL objects (tests inject refusals); ``defines`` go to every
+    shader (profiling)."""
 
     clears_microbuffers = False       # the walks write only the entries their nodes cover
 

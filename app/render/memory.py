@@ -5,8 +5,8 @@ framebuffers, the float images of the composite, the anti-aliasing samples and t
 Linux an allocation past the machine's memory does not raise MemoryError: the kernel's
 out-of-memory killer ends the process without a line (exit 137, after minutes of work). So
 ``render``, ``turntable`` and ``view --size`` (a window's frames are renders of its size) refuse
-an image whose pixels alone would need more than the memory available now, with the same ``out of memory (...)`` line as a MemoryError (app/errors.py:
-refusal), before loading anything.
+an image whose pixels alone would need more than the memory available now, with the same
+``out of memory (...)`` line as a MemoryError (app/errors.py: refusal), before loading anything.
 
 The estimate is the image's share only (``BASE_BYTES`` + ``BYTES_PER_PIXEL`` per pixel), so it
 never refuses what fits; a large cloud or asset adds its own. Measured peak resident memory of

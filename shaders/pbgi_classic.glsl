@@ -74,9 +74,12 @@ void main() {
     vec3 ball_center = share_center(i);
     float ball_radius = share_ball(i);
     N = share_frame(i);
-#endif
     vec3 T, B;
-    orthonormal_basis(N, T, B);
+    orthonormal_basis(N, T, B);         // a block's (or its receiver's) fixed frame
+#else
+    vec3 T, B;
+    mb_frame(N, receiver_pixel(rid), T, B);
+#endif
 
     uint count = 0u;
     uint cost = 0u;

@@ -81,7 +81,7 @@ void main() {
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
     vec3 T, B;
-    orthonormal_basis(N, T, B);
+    mb_frame(N, receiver_pixel(rid), T, B);
 
     uint count = 0u, cost = 0u, steps = 0u, visited = 0u;
     bool full = false;

@@ -21,6 +21,8 @@
 // each micro-pixel weighted by f cos(theta) times its own solid angle; the cosine loop then
 // leaves them out inside the lobe's domain (lobe_inside), so the two loops split the directions -
 // except the specular lobe near glossy_below, which the two share (lobe_spec_share).
+// Without FRAME_NORMALS the micro-buffer is in the receiver's own frame, turned about N per
+// receiver and pass or not, as its cut drew it (lib/microbuffer.glsl: mb_frame).
 // With IRRADIANCE the BRDF is a white Lambertian one, f = 1 / pi, whatever the material: the output
 // is E / pi, the diffuse outgoing radiance per unit albedo (the asset's surfel bounce and the
 // differential rendering of the scan, app/pbgi/renderer.py's gather_points).
@@ -148,15 +150,18 @@ void main() {
     vec3 p = receiver_position(rid);
     vec3 N = receiver_normal(rid);
     PrincipledPrepared Q = receiver_prepared(rid, p, N, u_camera);
-    vec3 T, B;
-    orthonormal_basis(N, T, B);          // the micro-buffer frame
+    vec3 T, B;                           // the micro-buffer frame
 #ifdef FRAME_NORMALS
     vec3 A = frame_normal(i);
     orthonormal_basis(A, T, B);
     vec3 n_local = vec3(dot(N, T), dot(N, B), dot(N, A));   // the receiver's normal, A's frame
     vec3 level = frame_level(i);                              // on the block's far entries
+#elif defined(RADIANCE_CUBEMAP)
+    vec3 A = N;
+    orthonormal_basis(N, T, B);          // directions into a cube map: no cut to agree with
 #else
     vec3 A = N;
+    mb_frame(N, receiver_pixel(rid), T, B);   // the frame the receiver's cut was drawn in
 #endif
 
     uint mm = mb_entries();

@@ -145,7 +145,7 @@ void main() {
         vec3 p = receiver_position(rid);
         vec3 N = receiver_normal(rid);
         vec3 T, B;
-        orthonormal_basis(N, T, B);
+        mb_frame(N, receiver_pixel(rid), T, B);
         uvec4 rect;
         uint skip;
         uint dec = cut_decide(A, p, N, T, B, u_omega_stop, u_omega_horizon, u_m, rect, skip);

@@ -15,7 +15,7 @@ import numpy as np
 
 from app.pbgi.gpu_layout import (CLASSIC_STATE, LOOP_LIMIT, SSBO, WALK_CUT_SHORT, WORKGROUP,
                                  dispatch_groups)
-from app.pbgi.microbuffer import entries, omega_horizon, omega_micro
+from app.pbgi.microbuffer import entries, omega_horizon, omega_micro, set_frame_uniforms
 from app.pbgi.modebase import Batch, CutFigures, CutFinder, MicroBufferMode, RenderParams
 from app.render.programs import load_compute
 
@@ -90,6 +90,8 @@ class ClassicCut(CutFinder):
         if "u_inv_cell_area" in prog:
             prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
+        set_frame_uniforms(prog, batch.seed_tile, batch.pass_index,   # unused with SHARE_SPLIT
+                           batch.turned_frames)
         nodes.set_uniforms(prog)
         groups = dispatch_groups(count, self.workgroup)
         rounds, remaining = 0, count

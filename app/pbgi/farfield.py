@@ -668,7 +668,7 @@ class FarFieldShare(CutFinder):
                         tl = time.perf_counter()
                         batch.gather.run(pseudo_buf, white, far_e, b0, b1 - b0, m,
                                          np.zeros(3), mb=self.block_mb, nodes=nodes,
-                                         irradiance=True)
+                                         irradiance=True, turned=False)
                         t_lv += time.perf_counter() - tl
             t2 = time.perf_counter()
             levels = np.ones((nb, 3))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from app.pbgi.gpu_layout import SSBO, TEXTURE, dispatch_groups
-from app.pbgi.microbuffer import flux_texture, table_texture
+from app.pbgi.microbuffer import flux_texture, set_frame_uniforms, table_texture
 from app.render.programs import load_compute
 
 
@@ -59,7 +59,8 @@ class Gather:
     def run(self, receivers, materials, output, first: int, count: int, m: int,
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
             lobe=None, lobe_buffers=None, irradiance: bool = False,
-            absent: tuple = (), parts=None) -> None:
+            absent: tuple = (), parts=None, seed_tile: tuple = (0, 0, 1, 1),
+            pass_index: int = 0, turned: bool = True) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
@@ -72,7 +73,9 @@ class Gather:
         ``absent``: BRDF features no material of the table uses (``absent_features``): a
         variant without their code, compiled once per feature set. ``parts``: a buffer of
         gpu_layout.GATHER_PARTS records per tile pixel, filled too (the GATHER_PARTS variant:
-        the sums kept apart per BRDF factor, app/pbgi/gather_parts.py)."""
+        the sums kept apart per BRDF factor, app/pbgi/gather_parts.py). ``seed_tile`` (tile x0,
+        y0, tile width, image width), ``pass_index`` and ``turned``: the receivers' micro-buffer
+        frames, as their cut drew them (microbuffer.set_frame_uniforms)."""
         if irradiance and lobe is not None:
             raise ValueError("an irradiance gather has no lobe micro-buffers")
         if irradiance and parts is not None:
@@ -82,6 +85,7 @@ class Gather:
         prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
                           () if irradiance else tuple(absent), directional, parts is not None,
                           mirror)
+        set_frame_uniforms(prog, seed_tile, pass_index, turned)
         if mirror:
             prog["u_asset_env_texel_omega"] = nodes.mirror_environment.texel_omega
         if parts is not None:
@@ -92,6 +96,7 @@ class Gather:
             for name, value in (("u_rings", lobe.rings), ("u_sectors", lobe.sectors),
                                 ("u_pass", lobe.pass_index),
                                 ("u_lobe_tile", tuple(int(v) for v in lobe.seed_tile)),
+                                ("u_lobe_cosine_m", int(lobe.cosine_m)),
                                 ("u_glossy_below", lobe.glossy_below)):
                 prog[name] = value
         if frames is not None:

@@ -97,6 +97,10 @@ class LobeSettings:
     # the same pixels get in one render of the image - a tile's own pixel index would repeat the
     # same seeds in every tile of the viewer's refinement, a pattern with the tiles' period
     seed_tile: tuple = (0, 0, 1, 1)
+    # the M of the cosine micro-buffer that takes each lobe's tail outside the lobe's domain: the
+    # domain reaches beyond a few of its micro-pixels (shaders/lib/lobe.glsl: lobe_tan_floor);
+    # 0: no floor
+    cosine_m: int = 0
 
     @property
     def cells(self) -> int:
@@ -113,7 +117,7 @@ class LobeSettings:
         r = 0, 0.1, 0.3; dielectric 0.3) at 60% of the lobe walk's time, and 16 x 16 within 1
         point of 24 x 24 at half of it."""
         side = max(LOBE_MIN_SIDE, int(round(LOBE_SIDE_FRACTION * m)))
-        return LobeSettings(side, side, float(glossy_below), int(pass_index))
+        return LobeSettings(side, side, float(glossy_below), int(pass_index), cosine_m=int(m))
 
 
 LOBE_SIDE_FRACTION = 0.5
@@ -269,6 +273,7 @@ class LobeBuffers:
         prog = self.program(settings.cells, absent)
         values = {"u_first": first, "u_count": count, "u_rings": settings.rings,
                   "u_lobe_tile": tuple(int(v) for v in settings.seed_tile),
+                  "u_lobe_cosine_m": int(settings.cosine_m),
                   "u_sectors": settings.sectors, "u_pass": settings.pass_index,
                   "u_glossy_below": settings.glossy_below, "u_stop_factor": settings.stop_factor,
                   "u_steps": self.steps, "u_splat_budget": self.splat_budget,

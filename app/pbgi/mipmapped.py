@@ -52,7 +52,7 @@ from app.pbgi.gmip import PIXEL_BYTES, WIDTH, MipPyramid, image_rows, to_rows, z
 from app.pbgi.gpu_layout import (FINISH_STATE, HEAD, IMAGE, ITEM, NIL, PAIR, PAIR_COUNTERS,
                                  LOOP_LIMIT, RECEIVER, SSBO, WALK_CUT_SHORT, WALK_DONE,
                                  dispatch_groups)
-from app.pbgi.microbuffer import entries, omega_horizon, omega_micro
+from app.pbgi.microbuffer import entries, omega_horizon, omega_micro, set_frame_uniforms
 from app.pbgi.modebase import (AllocationError, Batch, CutFigures, CutFinder, MicroBufferMode,
                                RenderParams)
 from app.pbgi.stats import PairFigures
@@ -245,6 +245,8 @@ class PairRefiner(CutFinder):
         _set(self.finish, u_first=first, u_count=count, u_m=m, u_omega_stop=omega_stop,
              u_omega_horizon=omega_h, u_steps=self.steps, u_splat_budget=self.splat_budget,
              u_inv_cell_area=inv_cell)
+        for prog in (self.refine, self.finish):
+            set_frame_uniforms(prog, batch.seed_tile, batch.pass_index, batch.turned_frames)
         nodes.set_uniforms(self.finish)
         self.finish_init["u_count"] = int(topo.offsets[1])
 

@@ -121,6 +121,9 @@ class Frame:
                                       # with their own micro-buffer size (renderer: lobe-only
                                       # receivers); empty = all ``count`` at ``m``
     layer: Layer | None = None        # the layer the tile belongs to (the viewer), or None
+    seed_tile: tuple = (0, 0, 1, 1)   # (tile x0, y0, tile width, image width): a receiver's
+                                      # pixel in the image, which seeds its frame's turn
+    turned_frames: bool = True        # turn the receivers' frames (microbuffer.set_frame_uniforms)
 
     @property
     def m(self) -> int:
@@ -146,6 +149,8 @@ class Batch:
     pass_index: int = 0               # the render's pass
     environment: Any = None           # Frame.environment (Hybrid's block levels), or None
     gather: Any = None                # Frame.gather (the same: the blocks' irradiance), or None
+    seed_tile: tuple = (0, 0, 1, 1)   # Frame.seed_tile (microbuffer.set_frame_uniforms)
+    turned_frames: bool = True        # Frame.turned_frames
 
 
 @dataclass
@@ -336,7 +341,8 @@ class MicroBufferMode(RenderMode):
                         held.buffers, frame.receivers, first, count, m, frame.nodes,
                         frame.cell_size, width=frame.tile[2], budget_bytes=cut_budget,
                         pass_index=frame.pass_index, environment=frame.environment,
-                        gather=frame.gather)))
+                        gather=frame.gather, seed_tile=frame.seed_tile,
+                        turned_frames=frame.turned_frames)))
                 except REFUSED as exc:
                     if per <= 1:
                         raise ScanlightError(None, f"out of GPU memory even for one receiver "
@@ -364,7 +370,8 @@ class MicroBufferMode(RenderMode):
                              frame.camera_rel, mb=held.buffers, nodes=frame.nodes, frames=frames,
                              lobe=frame.lobe, lobe_buffers=frame.lobe_buffers,
                              irradiance=frame.irradiance, absent=frame.absent_features,
-                             parts=frame.parts)
+                             parts=frame.parts, seed_tile=frame.seed_tile,
+                             pass_index=frame.pass_index, turned=frame.turned_frames)
             ctx.finish()
             t_gather += time.perf_counter() - tg
             t_cut += tl - tc

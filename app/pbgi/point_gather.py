@@ -119,7 +119,7 @@ class PointGather:
                               tile=(0, 0, n, 1), camera_rel=np.asarray(camera, np.float64),
                               nodes=nodes, cell_size=cell_size, gather=self.gather,
                               microbuffers=self.held, cut_key=("points",), environment=None,
-                              irradiance=mats is None)
+                              irradiance=mats is None, turned_frames=False)
                 self.mode.render(frame, stats)
                 rad = np.asarray(GATHER_OUTPUT.view(bufs["output"].read())["radiance"],
                                  np.float32).reshape(n, 3)

@@ -520,7 +520,8 @@ class Relighter:
                    tuple(camera.up.tolist()), camera.fov_y_deg, W, H, n, jitter,
                    tuple(id(mt.normal_texture) for mt in materials), scene_key,
                    None if pixels is None else hash(np.asarray(pixels, bool).tobytes()),
-                   groups, layer)      # Hybrid's blocks are the layer's
+                   groups, layer,      # Hybrid's blocks are the layer's
+                   int(pass_index))    # frames turn per pass (microbuffer.set_frame_uniforms)
         lobe = None
         if params.glossy_below > 0.0 and needs_lobe(materials, params.glossy_below):
             lobe = replace(LobeSettings.for_microbuffer(m_lobe, params.glossy_below, pass_index),
@@ -540,6 +541,7 @@ class Relighter:
                           leaf_radius=self.leaf_radius if lobe is not None else 0.0,
                           absent_features=stats.absent_features, groups=groups,
                           pass_index=int(pass_index), parts=bufs.get("parts"),
+                          seed_tile=(x0, y0, w, W),
                           layer=None if layer is None else Layer(
                               self._layer_gb["shape"] + (
                                   None if layer_coarse is None else self._layer_gb["coarse"][1],),

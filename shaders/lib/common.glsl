@@ -5,6 +5,14 @@ const float PI = 3.14159265358979323846;
 const float TWO_PI = 6.28318530717958647692;
 const float INV_PI = 0.31830988618379067154;
 
+// PCG-style integer hash (the lobe frames' and the micro-buffer frames' per-receiver seeds).
+uint hash_pcg(uint x) {
+    x = x * 747796405u + 2891336453u;
+    uint w = ((x >> ((x >> 28u) + 4u)) ^ x) * 277803737u;
+    return (w >> 22u) ^ w;
+}
+float hash_unit(uint h) { return float(h >> 8u) * (1.0 / 16777216.0); }   // [0, 1)
+
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 
 // Clamp before pow(1 - x, 5): llvmpipe returns NaN for x slightly above 1.

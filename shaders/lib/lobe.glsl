@@ -50,12 +50,8 @@ struct LobeFrame {
     uint split;      // rings of the inner piece (= rings with one piece)
 };
 
-uint lobe_hash(uint x) {           // PCG-style integer hash
-    x = x * 747796405u + 2891336453u;
-    uint w = ((x >> ((x >> 28u) + 4u)) ^ x) * 277803737u;
-    return (w >> 22u) ^ w;
-}
-float lobe_unit(uint h) { return float(h >> 8u) * (1.0 / 16777216.0); }
+uint lobe_hash(uint x) { return hash_pcg(x); }
+float lobe_unit(uint h) { return hash_unit(h); }
 
 // The lobe micro-buffer of a receiver whose narrowest lobe has alpha ``aw`` and widest ``amax``
 // (lobe_frame_for picks them from its lobes). One lobe, or two of similar width: one piece, the
@@ -63,8 +59,9 @@ float lobe_unit(uint h) { return float(h >> 8u) * (1.0 / 16777216.0); }
 // different widths (a mirror-like clearcoat over a glossy base): the inner half of the rings is
 // warped to the narrow lobe up to its own domain, the outer half to the wide lobe beyond it, so
 // neither lobe is left to a few huge micro-pixels (which made fireflies).
-LobeFrame lobe_frame(vec3 N, vec3 V, float aw, float amax, uint pixel, uint pass, uint rings,
-                     uint sectors) {
+// ``tan_floor``: the domain reaches at least tan theta_h = tan_floor (lobe_tan_floor).
+LobeFrame lobe_frame(vec3 N, vec3 V, float aw, float amax, float tan_floor, uint pixel, uint pass,
+                     uint rings, uint sectors) {
     LobeFrame f;
     f.N = N;
     orthonormal_basis(N, f.T, f.B);
@@ -78,7 +75,7 @@ LobeFrame lobe_frame(vec3 N, vec3 V, float aw, float amax, uint pixel, uint pass
     f.phi0 = TWO_PI * lobe_unit(lobe_hash(f.seed));
     f.rings = rings;
     f.sectors = sectors;
-    float t2 = d2 * amax * amax;
+    float t2 = max(d2 * amax * amax, tan_floor * tan_floor);
     if (amax > LOBE_SPLIT_RATIO * aw && rings >= 2u) {
         float t1 = d2 * f.a2;
         f.u_max = t1 / (f.a2 + t1);
@@ -125,6 +122,29 @@ uint lobe_seed_pixel(uint tile_pixel) {
     return (u_lobe_tile.y + tile_pixel / w) * u_lobe_tile.w + u_lobe_tile.x + tile_pixel % w;
 }
 
+// The domain's floor: what the cosine micro-buffer leaves of a lobe it must not hold. Outside the
+// domain the cosine micro-buffer takes the lobe's tail, one value of f cos at each micro-pixel's
+// centre times the micro-pixel's solid angle. A lobe much narrower than a micro-pixel (roughness
+// below ~0.1) has a domain (LOBE_DOMAIN alpha) smaller than one micro-pixel, so a centre that
+// falls just outside it samples the lobe near its peak for the whole micro-pixel: a receiver
+// in the white furnace 29% too bright at roughness 0 (M 24, Classic with frames turned per
+// receiver, lib/microbuffer.glsl: mb_frame - the fixed frame hid it in most receivers, not
+// all: 9%). So the domain reaches at least LOBE_FLOOR_PIXELS half-diagonals of a cosine
+// micro-pixel beyond the mirror direction, where the lobe has fallen to nothing: a micro-pixel
+// of side 2 / M in the Nusselt plane spans (2 / M) / cos(theta) radially and 2 / M across at
+// polar angle theta (the mirror direction's cos theta = N.V), and half-vector angles are half
+// the reflected ones. u_lobe_cosine_m: the M of the cosine micro-buffer that takes the tail
+// (0: no floor, the domain is LOBE_DOMAIN alpha). LOBE_MAX_U still caps it (141 alpha).
+#define LOBE_FLOOR_PIXELS 2.0
+#define LOBE_FLOOR_MIN_COS 0.25
+uniform int u_lobe_cosine_m;
+float lobe_tan_floor(float n_dot_v) {
+    if (u_lobe_cosine_m <= 0) return 0.0;
+    float c = max(n_dot_v, LOBE_FLOOR_MIN_COS);
+    float half_diagonal = sqrt(1.0 + 1.0 / (c * c)) / float(u_lobe_cosine_m);   // reflected
+    return LOBE_FLOOR_PIXELS * 0.5 * half_diagonal;
+}
+
 // The frame for those lobes: the warp follows the narrowest, the domain covers the widest.
 // An anisotropic specular lobe alone (no clearcoat in the buffer) is mapped through the slope
 // stretch of GGX: slopes m' = (sx m.x, sy m.y) along the material's tangent X and bitangent Y,
@@ -138,10 +158,12 @@ LobeFrame lobe_frame_for(PrincipledPrepared q, bvec2 terms, uint pixel, uint pas
     if (terms.x) { aw = sqrt(q.ax * q.ay); amax = max(q.ax, q.ay); }
     if (terms.y) { aw = min(aw, q.cc_alpha); amax = max(amax, q.cc_alpha); }
 #ifdef PRINCIPLED_NO_ANISOTROPY
-    return lobe_frame(q.N, q.V, aw, amax, pixel, pass, rings, sectors);
+    return lobe_frame(q.N, q.V, aw, amax, lobe_tan_floor(q.n_dot_v), pixel, pass, rings,
+                      sectors);
 #else
     bool stretch = terms.x && !terms.y && abs(q.ax - q.ay) > 1e-3 * aw;
-    LobeFrame f = lobe_frame(q.N, q.V, aw, stretch ? aw : amax, pixel, pass, rings, sectors);
+    LobeFrame f = lobe_frame(q.N, q.V, aw, stretch ? aw : amax, lobe_tan_floor(q.n_dot_v), pixel,
+                             pass, rings, sectors);
     if (stretch) {
         f.T = q.X;
         f.B = q.Y;

@@ -10,8 +10,8 @@
 // up to 2x). mb_table(k) = MbDirection (centroid direction in the receiver frame, cosine-weighted
 // solid angle = clipped area of the entry's region); mb_entries() = E, the texels per receiver.
 // A rasteriser covers a rectangle of grid pixels with all their bands: mb_rect_entries(rect)
-// tests (see pbgi_classic.glsl's loop). The receiver frame is orthonormal_basis(N)
-// (lib/principled.glsl): x along t, y along b, z = N.
+// tests (see pbgi_classic.glsl's loop). The receiver frame is mb_frame's (below): x along t,
+// y along b, z = N, with (t, b) orthonormal_basis(N) (lib/principled.glsl) turned about N.
 //
 // Node rasterisation (paper Section 5.3): a node is written into every micro-pixel whose
 // direction ray hits it (ray-sphere test) and can meet a front face of its normal cone, with a
@@ -25,7 +25,44 @@
 #ifndef SCANLIGHT_MICROBUFFER_GLSL
 #define SCANLIGHT_MICROBUFFER_GLSL
 #include "lib/common.glsl"
+#include "lib/principled.glsl"
 #include "gen/microbuffer.glsl"
+
+// The receiver's micro-buffer frame (seed 001, Section 2.3: "rotate each receiver's frame so
+// that residual quantisation is noise, never a grid"): orthonormal_basis(N) turned about N by a
+// random angle per receiver and pass. In a fixed frame the micro-pixel grid turns smoothly with
+// the normal, so the instant a light crosses a micro-pixel's edge - and the instant the cut
+// swaps a node for its children - is the same for neighbouring receivers: the shading of a
+// smooth surface shows lines and facets along those instants. Turned at random, each receiver
+// quantises its own way: the same error as noise, which the passes average
+// (app/pbgi/microbuffer.py: set_frame_uniforms). The seed is the receiver's pixel in the whole
+// image (u_frame_tile = tile x0, y0, tile width, image width: a tile's receivers get the angles
+// one render of the image gives them) and the pass (u_frame_pass). Every shader that writes or
+// reads a receiver's own micro-buffer takes its frame from here, so walk, rasteriser and gather
+// agree. u_frame_turned 0 keeps orthonormal_basis(N): the point gathers (no passes average
+// their noise), and Hybrid's block buffers, whose grid the passes move instead
+// (app/pbgi/farfield.py; the receivers' gather reads those with FRAME_NORMALS).
+uniform uvec4 u_frame_tile;
+uniform uint u_frame_pass;
+uniform bool u_frame_turned;
+void mb_frame(vec3 N, uint tile_pixel, out vec3 T, out vec3 B) {
+    orthonormal_basis(N, T, B);
+    if (!u_frame_turned) return;
+    uint w = max(u_frame_tile.z, 1u);
+    uint pixel = (u_frame_tile.y + tile_pixel / w) * u_frame_tile.w + u_frame_tile.x
+               + tile_pixel % w;
+    // the turn's (cos, sin) without trigonometry (the Mipmapped refinement takes a frame per
+    // (node, receiver) pair): t = tan(phi / 2) uniform in [-1, 1] is phi in [-90, 90] degrees,
+    // a hash bit adds a half turn; phi's density then varies by at most 2x around the circle,
+    // which decorrelates neighbouring receivers as well as a uniform angle
+    uint h = hash_pcg(pixel * 7919u + u_frame_pass * 104729u + 0x9e3779b9u);
+    float q = float(h & 0xFFFFu) * (2.0 / 65535.0) - 1.0;
+    float k = ((h & 0x10000u) != 0u ? -1.0 : 1.0) / (1.0 + q * q);
+    float c = (1.0 - q * q) * k, s = 2.0 * q * k;
+    vec3 t = T;
+    T = c * t + s * B;
+    B = c * B - s * t;
+}
 
 uint mb_extra_prefix(uint x, uint y) { return mb_bands(x, y).prefix; }
 MbEntry mb_load(uint receiver, uint k) { return mb_entry_at(ivec2(int(k), int(receiver))); }

@@ -155,16 +155,25 @@ def test_a_mirror_sees_a_closed_room(sweep):
     """Every lobe micro-pixel of a mirror sphere inside the closed room finds a surface: points
     are discs of the scan's spacing, leaves and the culls of their parents grow by it (with
     the leaves' own spheres, 2% of the receivers had lobe micro-pixels that missed: black dots
-    on the mirror). (A rougher lobe's micro-pixels below the horizon stay empty by design.)"""
-    from app.pbgi.gpu_layout import MB_EMPTY
+    on the mirror). A rougher lobe's micro-pixels below the horizon stay empty by design, and
+    so may a mirror's outermost ring at a grazing view: its domain reaches two cosine
+    micro-pixels beyond the mirror direction (shaders/lib/lobe.glsl: lobe_tan_floor), past the
+    horizon when N.V is small (measured: one receiver of 4060, N.V = 0.11, one cell)."""
+    from app.pbgi.gpu_layout import MB_EMPTY, RECEIVER
     from app.pbgi.renderer import RenderParams
     rl, cam = sweep
     res = rl.render(cam, [glossy.material("metal", 0.0)], RenderParams(mode="classic"))
     cells = rl.lobe_buffers.read(res.stats.receivers)[:, :, 1]
     assert res.stats.receivers > 3000 and cells.shape[1] == 12 * 12    # M 24: M / 2 a side
-    used = 8 * 8                # one lobe takes 2/3 of each side (shaders/lib/lobe_size.glsl)
-    assert (cells[:, :used] != MB_EMPTY).all(), (cells[:, :used] == MB_EMPTY).any(1).sum()
-    assert (cells[:, used:] == MB_EMPTY).all()
+    side = 8                    # one lobe takes 2/3 of each side (shaders/lib/lobe_size.glsl)
+    empty = cells[:, :side * side] == MB_EMPTY
+    outer = np.arange(side * side) // side == side - 1               # the last ring's cells
+    assert not empty[:, ~outer].any(), empty[:, ~outer].any(1).sum()
+    rec = RECEIVER.view(rl.last_receivers[:res.stats.receivers])
+    view = cam.position - (rec["position"].astype(np.float64) + rl.origin)
+    n_dot_v = np.einsum("ij,ij->i", rec["normal"], view) / np.linalg.norm(view, axis=1)
+    assert (n_dot_v[empty.any(1)] < 0.25).all() and empty.any(1).sum() < 10
+    assert (cells[:, side * side:] == MB_EMPTY).all()
 
 
 # measured at 96 px (Hybrid M 24, 4x4-pooled error at GI 1/2 over at 1, apartment / city):

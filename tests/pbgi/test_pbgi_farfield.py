@@ -121,9 +121,11 @@ def test_a_dithered_receiver_joins_only_a_block_whose_cone_holds_its_normal():
 def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     """Constant radiance all around: a node lost between the far walk of a block and the near
     walks of its receivers would leave a dark hole. Per pixel, Hybrid with sharing stays within
-    4.5% of Classic (entries the receiver's horizon cuts; the block grid moves per pass, and over
-    9 grid offsets the worst pixel measured 1.8-3.7%, square blocks without the dither 1.8-5.4%;
-    a lost node would be a hole of its whole solid angle), and the mean of
+    4.5% of L x the BRDF's directional albedo (numpy; measured 4.0%, Classic 3.7%: entries the
+    receiver's horizon cuts, the shell's points quantised into micro-pixels; against Classic,
+    before its frames turned per receiver, the worst pixel measured 1.8-3.7% over 9 grid
+    offsets, square blocks without the dither 1.8-5.4%; a lost node would be a hole of its
+    whole solid angle), and the mean of
     Hybrid / (L x the BRDF's albedo, numpy) is within 0.5% of 1 (the horizon sliver a block's
     frame misses is ~ (cone limit)^2 / 4: 0.25%). Most receivers do share."""
     from tests.support.scenes import albedo_of_cos as _albedo_of_cos, view_cos as _view_cos  # noqa: F401
@@ -135,10 +137,10 @@ def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     res = furnace.render(cam, [mat], RenderParams(mode="hybrid", microbuffer=16))
     s = res.stats
     assert s.completed and s.share.share_receivers > 0.7 * s.receivers
-    cover = base.image[..., 3] > 0
-    got, want = res.image[..., :3][cover], base.image[..., :3][cover]
-    assert np.abs(got / want - 1).max() < 0.045
     pix, cos_v = _view_cos(furnace, cam, mat)
+    albedo = _albedo_of_cos(brdf.pack_params(mat), cos_v)
+    assert base.stats.completed
+    assert np.abs(res.image.reshape(-1, 4)[pix, :3].mean(-1) / albedo - 1).max() < 0.045
     expect = _albedo_of_cos(brdf.pack_params(mat), cos_v)
     assert abs((res.image.reshape(-1, 4)[pix, 0] / expect).mean() - 1) < 0.005
 
@@ -353,10 +355,13 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
     """Hybrid at M = 16 on the demo close-up, 96 x 96, one pass (the grid aligned). Receivers
     near a block's edge may join the neighbouring block (farfield.DITHER), so a block's edge is
     a ragged band: adjacent-pixel differences across the block grid are below 1.8x those inside
-    (measured 1.48x; square blocks 2.55x, Classic M = 16 1.10x), and the 4x4-pooled error
-    against Classic at M = 32 is Classic M = 16's within 1.5 points (measured 5.2% against
-    4.4%; square blocks 6.6%). Measured without the block levels, which take out most of what
-    is left (tests/pbgi/test_block_levels.py) - of the square blocks' steps too (1.84x)."""
+    (measured 1.47x; square blocks 2.55x, Classic M = 16 1.10x), and the 4x4-pooled error
+    against Classic at M = 32 is below the square blocks' and below 6% (measured 5.0% against
+    6.4%). Classic M = 16 measured 4.4% with the unturned frame and 1.7% now: its frames turn
+    per receiver (lib/microbuffer.glsl: mb_frame), so its quantisation is noise the pooling
+    averages, while a block's receivers share one frame. Measured without the block levels,
+    which take out most of what is left (tests/pbgi/test_block_levels.py: 2.3%) - of the square
+    blocks' steps too (1.84x)."""
     from app.bench.image_metrics import relative_rmse
     from tests.support.block_steps import block_steps
     from app.demo.room import default_views
@@ -383,4 +388,5 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
         finder.level_fit = True
     assert got[True][0] < 1.8
     assert got[False][0] > 2.2                     # the square blocks this test guards against
-    assert got[True][1] < relative_rmse(classic, ref, mask, pool=4) + 0.015
+    assert got[True][1] < min(got[False][1], 0.06)
+    assert relative_rmse(classic, ref, mask, pool=4) < 0.03       # the turned frames

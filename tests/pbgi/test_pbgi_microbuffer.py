@@ -9,7 +9,7 @@ from app.pbgi import layout
 import pytest
 
 from tests.support import scenes as S
-from app.pbgi.brdf import orthonormal_basis
+from tests.support.frames import turned_frame
 from app.pbgi.classic import LOOP_LIMIT, ClassicCut
 from app.pbgi.microbuffer import (EMPTY, batch_size, entries, micro_pixel_table, omega_micro,
                                   rect_entries)
@@ -183,7 +183,9 @@ def test_microbuffer_entries_are_visible_nodes(room):
     """Each filled micro-pixel holds a node whose bounding sphere its direction ray really hits
     (numpy ray-sphere test), in front of the receiver, not entirely below its horizon; a closed
     room leaves (almost) no micro-pixel empty. The nodes are the joined tree's: the room's and
-    the asset's surfels (app/pbgi/scene_tree.py)."""
+    the asset's surfels (app/pbgi/scene_tree.py). The directions are in each receiver's own
+    turned frame (tests/support/frames.py, a numpy twin of lib/microbuffer.glsl's mb_frame):
+    with the unturned frame every one of the 30 checked receivers fails the ray-sphere test."""
     m = 16
     params = RenderParams(mode="classic", microbuffer=m)
     room.convex_shortcut = False   # the sphere is convex: walk its surfels anyway (joined tree)
@@ -199,7 +201,8 @@ def test_microbuffer_entries_are_visible_nodes(room):
     filled_weight = 0.0
     for i in range(0, n, max(1, n // 25)):
         p, nrm = rec[i, 0:3].astype(float), rec[i, 4:7].astype(float)
-        t, b = orthonormal_basis(nrm)
+        pixel = int(rec[i, 3:4].astype(np.float32).view(np.uint32)[0])
+        t, b = turned_frame(nrm, pixel, seed_tile=(0, 0, CAM.width, CAM.width))
         w = table["dir"] @ np.stack([t, b, nrm])
         node = mb[i, :, 1]
         ok = (node != EMPTY) & (table["weight"] > 0)

@@ -74,9 +74,13 @@ def test_light_straddling_the_horizon_does_not_leak():
 
     The panel's visible half gives >= 60% of what the receiver gets (the walls are dim), and
     the hidden half is its mirror image, so a leak of the hidden half would push PBGI /
-    reference above 1.6; we require [0.8, 1.25] for M = 16, 24, 32 (measured 1.00, 1.20, 1.09)
-    and [0.8, 1.4] at M = 8, whose rim pixels have two bands of ~20 degrees: 1.28 with the nodes
+    reference above 1.6; we require [0.8, 1.25] for M = 16, 24, 32 (measured 1.22, 1.09, 1.10)
+    and [0.8, 1.45] at M = 8, whose rim pixels have two bands of ~20 degrees: 1.36 with the nodes
     across the horizon capped at 2 pi / 64 (microbuffer.HORIZON_OMEGA), 1.56 without the cap.
+    Each value is the mean of 4 passes: the micro-buffer's frame turns per receiver and pass
+    (lib/microbuffer.glsl: mb_frame), and how the rim's bands lie against the panel's edge
+    moves the ratio - single passes at M = 8 measured 1.32-1.45 (the unturned frame, one
+    orientation, 1.27), at M = 16 1.18-1.25.
     The visible half lies within 16 degrees of the horizon, where a Nusselt grid pixel spans up
     to 28 degrees of elevation: with one ray per pixel this case measured 1.73 at M = 16 (the
     over-estimate the issue describes) and 0.22 at M = 8; the micro-buffer's rim pixels are
@@ -106,8 +110,8 @@ def test_light_straddling_the_horizon_does_not_leak():
     assert 1.0 - ref_dark.mean() / ref.mean() > 0.6           # the light dominates
     ratios = {}
     for m in (8, 16, 24, 32):
-        res = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=m))
+        res = r.render_passes(cam, [mat], RenderParams(mode="classic", microbuffer=m), passes=4)
         assert res.stats.completed
         got = res.image.reshape(-1, 4)[gb["pixel"], :3].astype(np.float64)
         ratios[m] = got.mean() / ref.mean()
-    assert all(0.8 < v < (1.4 if m == 8 else 1.25) for m, v in ratios.items()), ratios
+    assert all(0.8 < v < (1.45 if m == 8 else 1.25) for m, v in ratios.items()), ratios

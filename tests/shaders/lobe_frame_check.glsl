@@ -16,7 +16,7 @@ uniform uint u_count;
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
-    LobeFrame f = lobe_frame(vec3(0.0, 0.0, 1.0), normalize(vec3(0.3, 0.1, 1.0)), 0.2, 0.2,
+    LobeFrame f = lobe_frame(vec3(0.0, 0.0, 1.0), normalize(vec3(0.3, 0.1, 1.0)), 0.2, 0.2, 0.0,
                              i % u_pixels, i / u_pixels, 8u, 8u);
     out_data[i] = f.phi0;
 }

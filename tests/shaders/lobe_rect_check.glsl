@@ -60,9 +60,9 @@ void main() {
     vec4 a = cases[4u * c], b = cases[4u * c + 1u], x = cases[4u * c + 2u], y = cases[4u * c + 3u];
     uint rings = uint(a.w), sectors = uint(b.w);
     float aw = sqrt(x.w * y.w);
-    LobeFrame f = lobe_frame(a.xyz, b.xyz, aw, max(x.w, y.w), c, 0u, rings, sectors);
+    LobeFrame f = lobe_frame(a.xyz, b.xyz, aw, max(x.w, y.w), 0.0, c, 0u, rings, sectors);
     if (abs(x.w - y.w) > 1e-3 * aw) {                 // lobe_frame_for's stretch
-        f = lobe_frame(a.xyz, b.xyz, aw, aw, c, 0u, rings, sectors);
+        f = lobe_frame(a.xyz, b.xyz, aw, aw, 0.0, c, 0u, rings, sectors);
         f.T = x.xyz;
         f.B = y.xyz;
         f.st = vec2(x.w, y.w) / aw;

@@ -20,7 +20,7 @@ void main() {
     if (c >= u_count) return;
     vec4 k = cases[c];
     uint rings = uint(k.z), sectors = 64u;
-    LobeFrame f = lobe_frame(vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0), k.x, k.y, 0u, 0u, rings,
+    LobeFrame f = lobe_frame(vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0), k.x, k.y, 0.0, 0u, 0u, rings,
                              sectors);
     float dphi = TWO_PI / float(sectors), sum = 0.0;
     for (uint i = 0u; i < rings; ++i) {

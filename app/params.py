@@ -277,8 +277,8 @@ PARAMS: tuple[Param, ...] = (
        "parameter at 0 (one program per feature set, cached); off: one program with all of "
        "them. The same image either way.", label="shader variants", redo="gi", ui=False),
     _i("pbgi.lobe_only_microbuffer", 8, "Micro-buffer size M used instead of "
-       "pbgi.microbuffer for each receiver of a glossy metal (metallic 1, roughness 0.1 or more "
-       "and smooth enough that the lobe micro-buffers take its whole specular lobe; other "
+       "pbgi.microbuffer for each receiver of a glossy metal (metallic 1, "
+       "smooth enough that the lobe micro-buffers take its whole specular lobe; other "
        "receivers of the same image keep pbgi.microbuffer): its "
        "light comes from the lobe buffers, and the cosine micro-buffer then holds only the "
        "lobe's far tail (a metal has no diffuse, sheen or subsurface). 0 = always "

@@ -97,9 +97,10 @@ class LobeSettings:
     # the same pixels get in one render of the image - a tile's own pixel index would repeat the
     # same seeds in every tile of the viewer's refinement, a pattern with the tiles' period
     seed_tile: tuple = (0, 0, 1, 1)
-    # the M of the cosine micro-buffer that takes each lobe's tail outside the lobe's domain: the
-    # domain reaches beyond a few of its micro-pixels (shaders/lib/lobe.glsl: lobe_tan_floor);
-    # 0: no floor
+    # the M of the cosine micro-buffer that takes each lobe's tail outside the lobe's domain (per
+    # run of receivers: pbgi.lobe_only_microbuffer's for a glossy metal's, app/pbgi/modebase.py):
+    # the domain reaches a micro-pixel of it past the mirror direction (shaders/lib/lobe.glsl:
+    # lobe_tan_floor); 0: no floor
     cosine_m: int = 0
 
     @property
@@ -160,10 +161,6 @@ LOBE_BLEND = 0.3      # lib/lobe.glsl's LOBE_BLEND: the lobe buffer takes the wh
                       # lobe up to (1 - LOBE_BLEND) x glossy_below (tests/pbgi/test_lobe_only.py)
 
 
-LOBE_ONLY_MIN_ROUGHNESS = 0.1   # smoother metals keep the full cosine micro-buffer
-                                # (lobe_only_receivers)
-
-
 def lobe_only_receivers(metallic, roughness, glossy_below: float) -> np.ndarray:
     """Per receiver (its metallic and roughness as the G-buffer sampled them, textures applied):
     is its light gathered from the lobe micro-buffers alone, up to a tail a coarse cosine
@@ -172,17 +169,19 @@ def lobe_only_receivers(metallic, roughness, glossy_below: float) -> np.ndarray:
     has no diffuse, sheen or subsurface lobe, and below (1 - LOBE_BLEND) glossy_below its whole
     specular lobe and any clearcoat are in the lobe buffer. The cosine micro-buffer then holds
     only the specular lobe's tail outside the lobe's domain (about 1% of its energy), so a
-    coarse one is enough - but not below roughness LOBE_ONLY_MIN_ROUGHNESS, where that tail is a
-    narrow ring just outside the domain that one coarse micro-pixel's centroid samples or
-    misses: white furnace, Classic, single pixels off by 34% at roughness 0 - 0.02 and 13% at
-    0.05 with M 8 (8.6% and 1.6% at M 24), 1.6-3.6% at 0.1 - 0.3 for any M.
+    coarse one is enough, down to the mirror. Below roughness ~0.1 that tail used to be a
+    narrow ring just outside the domain that one coarse micro-pixel's centre sampled or missed
+    (white furnace, Classic, single pixels off by 34% at roughness 0 - 0.02 and 13% at 0.05
+    with M 8), and those metals kept the full M; the domain now reaches a coarse micro-pixel
+    past the mirror direction (LobeSettings.cosine_m, shaders/lib/lobe.glsl: lobe_tan_floor):
+    1.5% at 0 - 0.05, 2.3-3.1% at 0.08 - 0.1 with M 8.
 
     The rule is the opposite of "a rough receiver needs fewer micro-pixels": a rough receiver's
     light is all in the cosine buffer, a glossy metal's nearly none of it."""
     metallic = np.asarray(metallic, dtype=np.float64)
     roughness = np.asarray(roughness, dtype=np.float64)
     full = float(glossy_below) * (1.0 - LOBE_BLEND)
-    return (metallic >= 1.0) & (roughness >= LOBE_ONLY_MIN_ROUGHNESS) & (roughness < full)
+    return (metallic >= 1.0) & (roughness < full)
 
 
 def bytes_per_receiver(settings: LobeSettings | None) -> int:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import logging
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, ClassVar
 
 import moderngl
@@ -329,6 +329,8 @@ class MicroBufferMode(RenderMode):
             cut.begin_group(frame, start, n, m)
         halvings, first, end = 0, start, start + n
         t_cut = t_gather = 0.0
+        # the lobe domain's floor follows this group's cosine micro-buffer (LobeSettings.cosine_m)
+        lobe = None if frame.lobe is None else replace(frame.lobe, cosine_m=m)
         while first < end:
             count = min(per, end - first)
             ctx.finish()
@@ -353,9 +355,9 @@ class MicroBufferMode(RenderMode):
                     continue
                 ctx.finish()
             tl = time.perf_counter()
-            if frame.lobe is not None:
+            if lobe is not None:
                 lobe_figures = frame.lobe_buffers.fill(
-                    frame.lobe, frame.receivers, frame.materials, first, count, per, frame.nodes,
+                    lobe, frame.receivers, frame.materials, first, count, per, frame.nodes,
                     frame.cell_size, frame.camera_rel, frame.leaf_radius,
                     absent=frame.absent_features)
                 ctx.finish()
@@ -368,7 +370,7 @@ class MicroBufferMode(RenderMode):
             frames = held.frames if reuse else batches[-1].frames
             frame.gather.run(frame.receivers, frame.materials, frame.output, first, count, m,
                              frame.camera_rel, mb=held.buffers, nodes=frame.nodes, frames=frames,
-                             lobe=frame.lobe, lobe_buffers=frame.lobe_buffers,
+                             lobe=lobe, lobe_buffers=frame.lobe_buffers,
                              irradiance=frame.irradiance, absent=frame.absent_features,
                              parts=frame.parts, seed_tile=frame.seed_tile,
                              pass_index=frame.pass_index, turned=frame.turned_frames)

@@ -75,7 +75,7 @@ void main() {
     float ball_radius = share_ball(i);
     N = share_frame(i);
     vec3 T, B;
-    mb_frame(N, 0u, T, B);              // a block's (or its receiver's) frame, seeded by N
+    orthonormal_basis(N, T, B);         // a block's (or its receiver's) fixed frame
 #else
     vec3 T, B;
     mb_frame(N, receiver_pixel(rid), T, B);

@@ -75,12 +75,7 @@ passes 1.3. Frame time unchanged (11 interleaved frames: median 302 ms vs 304 ms
 Tried and dropped: tilting each block's frame by a random angle up to one micro-pixel per pass
 (a stand-in for a random azimuth, which the gather's frame - orthonormal_basis of the normal -
 cannot express): blocks become independent, one pass gets worse (ratio 2.86), 4 passes 1.84;
-with the offset no better than the offset alone. The random azimuth itself came later
-(2026-12-06: lib/microbuffer.glsl's mb_frame seeded by the block's axis, the one value its far
-walk, its receivers' near walks and their gather all see), on top of the dither and the block
-levels: demo close-up, diffuse, M 16, 4x4-pooled error against Classic M 32, one pass 4.3 ->
-2.4% (160 px), 4 passes 2.0 -> 1.2%; block-step ratio 1.30 -> 1.27 at 96 px, 1.43 -> 1.49 on
-the whole view at 128 px. Looking the block buffer up through each
+with the offset no better than the offset alone. Looking the block buffer up through each
 receiver's own frame instead of copying it: a second quantisation on top (ratio 4.8, error
 8.9%). Leaving the far nodes brighter than 4x the scene's mean to each receiver (drawn in its
 own frame): ratio 1.23, but inside differences 5.2%, error 11.5% and the frame 75% slower.
@@ -653,9 +648,7 @@ class FarFieldShare(CutFinder):
                     self.block_mb.prepare(m, cap, b1 - b0)
                     ball_buf = self._buffer(balls[b0:b1])
                     res = self.far.fill(Batch(self.block_mb, pseudo_buf, b0, b1 - b0, m, nodes,
-                                              cell_size, pass_index=batch.pass_index,
-                                              turned_frames=batch.turned_frames),
-                                        share=ball_buf)
+                                              cell_size), share=ball_buf)
                     far_visited[b0:b1] = res.visited
                     far_done[b0:b1] = res.done
                     rounds += res.rounds
@@ -675,8 +668,7 @@ class FarFieldShare(CutFinder):
                         tl = time.perf_counter()
                         batch.gather.run(pseudo_buf, white, far_e, b0, b1 - b0, m,
                                          np.zeros(3), mb=self.block_mb, nodes=nodes,
-                                         irradiance=True, pass_index=batch.pass_index,
-                                         turned=batch.turned_frames, by_normal=True)
+                                         irradiance=True, turned=False)
                         t_lv += time.perf_counter() - tl
             t2 = time.perf_counter()
             levels = np.ones((nb, 3))
@@ -703,9 +695,7 @@ class FarFieldShare(CutFinder):
             near_balls["center"][has] = blocks["centre"][block_of[has]]
             near_balls["ball"][has] = blocks["ball"][block_of[has]]
             near_balls["frame"][has] = blocks["axis"][block_of[has]]
-            res = self.near.fill(Batch(mb, receivers, first, count, m, nodes, cell_size,
-                                       pass_index=batch.pass_index,
-                                       turned_frames=batch.turned_frames),
+            res = self.near.fill(Batch(mb, receivers, first, count, m, nodes, cell_size),
                                  share=self._buffer(near_balls))
             if self.frames is not None:
                 self.frames.release()

@@ -60,7 +60,7 @@ class Gather:
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
             lobe=None, lobe_buffers=None, irradiance: bool = False,
             absent: tuple = (), parts=None, seed_tile: tuple = (0, 0, 1, 1),
-            pass_index: int = 0, turned: bool = True, by_normal: bool = False) -> None:
+            pass_index: int = 0, turned: bool = True) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
@@ -74,9 +74,8 @@ class Gather:
         variant without their code, compiled once per feature set. ``parts``: a buffer of
         gpu_layout.GATHER_PARTS records per tile pixel, filled too (the GATHER_PARTS variant:
         the sums kept apart per BRDF factor, app/pbgi/gather_parts.py). ``seed_tile`` (tile x0,
-        y0, tile width, image width), ``pass_index``, ``turned`` and ``by_normal`` (implied by
-        ``frames``): the receivers' micro-buffer frames, as their cut drew them
-        (microbuffer.set_frame_uniforms)."""
+        y0, tile width, image width), ``pass_index`` and ``turned``: the receivers' micro-buffer
+        frames, as their cut drew them (microbuffer.set_frame_uniforms)."""
         if irradiance and lobe is not None:
             raise ValueError("an irradiance gather has no lobe micro-buffers")
         if irradiance and parts is not None:
@@ -86,8 +85,7 @@ class Gather:
         prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
                           () if irradiance else tuple(absent), directional, parts is not None,
                           mirror)
-        set_frame_uniforms(prog, seed_tile, pass_index, turned,
-                           by_normal=by_normal or frames is not None)
+        set_frame_uniforms(prog, seed_tile, pass_index, turned)
         if mirror:
             prog["u_asset_env_texel_omega"] = nodes.mirror_environment.texel_omega
         if parts is not None:

@@ -3,8 +3,8 @@
 A micro-buffer is an M x M image of the receiver's upper hemisphere under the Nusselt projection
 Phi(x, y) = (x, y, sqrt(1 - x^2 - y^2)) (paper Section 5.2, Ritschel et al. 2009 Section 2.3),
 x, y in [-1, 1] along the receiver's frame: orthonormal_basis(N) (lib/principled.glsl) turned
-about N by a random angle per receiver and pass (``set_frame_uniforms``; in Hybrid's shared
-blocks per block and pass).
+about N by a random angle per receiver and pass (``set_frame_uniforms``), except in Hybrid's
+shared blocks, whose frame is fixed.
 
 Micro-pixel table (computed here once per M, uploaded as gpu_layout.MB_DIRECTION texels):
   * ``weight`` = area of (pixel square intersected with the unit disc) = the pixel's
@@ -71,27 +71,24 @@ def omega_horizon(m: int, stop_factor: float) -> float:
 
 
 def set_frame_uniforms(prog, seed_tile=(0, 0, 1, 1), pass_index: int = 0,
-                       turned: bool = True, by_normal: bool = False) -> None:
+                       turned: bool = True) -> None:
     """The uniforms of lib/microbuffer.glsl's ``mb_frame``: the receiver's frame turned about
     its normal by an angle drawn from its pixel in the whole image (``seed_tile``: tile x0, y0,
-    tile width, image width) and the pass; ``by_normal``: drawn from the frame's normal and the
-    pass instead (Hybrid's blocks); ``turned`` False: orthonormal_basis(N) itself. Every
-    program that draws or reads a micro-buffer sets them from the same render, so its walk,
-    rasteriser and gather agree.
+    tile width, image width) and the pass; ``turned`` False: orthonormal_basis(N) itself. Every
+    program that draws or reads a receiver's own micro-buffer sets them from the same render,
+    so its walk, rasteriser and gather agree.
 
     Why (issue 12, seed 001 Section 2.3): in a fixed frame the micro-pixel grid turns smoothly
     with the normal, so the instant a light crosses a micro-pixel's edge, or the cut swaps a node
     for its children, is the same for neighbouring receivers, and a smooth diffuse surface shows
     the grid as lines and facets (Classic, README "Frames turned per receiver"). A random turn
     per receiver makes the same quantisation error noise, which the passes average. Hybrid's
-    blocks share one micro-buffer among receivers: the far walk draws it in the frame of the
-    block's cone axis, the merge copies it into the receivers' buffers, and their near walks
-    and gather use that axis too, so the turn is seeded by the axis (the one value they all
-    see) and is one per block and pass. The point gathers (app/pbgi/point_gather.py) keep the
-    fixed frame: no passes average their noise, and the asset's glossy bounce fits a plane to
-    each surfel's views, which noise from surfel to surfel makes worse."""
+    blocks share one micro-buffer among receivers and keep the fixed frame; their grid moves
+    per pass instead (app/pbgi/farfield.py). The point gathers (app/pbgi/point_gather.py) keep
+    it too: no passes average their noise, and the asset's glossy bounce fits a plane to each
+    surfel's views, which noise from surfel to surfel makes worse."""
     values = {"u_frame_tile": tuple(int(v) for v in seed_tile), "u_frame_pass": int(pass_index),
-              "u_frame_turned": bool(turned), "u_frame_by_normal": bool(by_normal)}
+              "u_frame_turned": bool(turned)}
     for name, value in values.items():
         if name in prog:
             prog[name] = value

@@ -39,25 +39,18 @@
 // image (u_frame_tile = tile x0, y0, tile width, image width: a tile's receivers get the angles
 // one render of the image gives them) and the pass (u_frame_pass). Every shader that writes or
 // reads a receiver's own micro-buffer takes its frame from here, so walk, rasteriser and gather
-// agree. u_frame_by_normal: the seed is the frame's normal itself, not a pixel - Hybrid's
-// far-field sharing (app/pbgi/farfield.py), where a block's micro-buffer is drawn in the frame
-// of its cone axis and copied into its receivers' buffers, whose near walks and gather
-// (FRAME_NORMALS) take the same axis: the one vector every program sees gives them all one
-// turn per block and pass. u_frame_turned 0 keeps orthonormal_basis(N): the point gathers (no
-// passes average their noise).
+// agree. u_frame_turned 0 keeps orthonormal_basis(N): the point gathers (no passes average
+// their noise), and Hybrid's block buffers, whose grid the passes move instead
+// (app/pbgi/farfield.py; the receivers' gather reads those with FRAME_NORMALS).
 uniform uvec4 u_frame_tile;
 uniform uint u_frame_pass;
 uniform bool u_frame_turned;
-uniform bool u_frame_by_normal;
 void mb_frame(vec3 N, uint tile_pixel, out vec3 T, out vec3 B) {
     orthonormal_basis(N, T, B);
     if (!u_frame_turned) return;
     uint w = max(u_frame_tile.z, 1u);
     uint pixel = (u_frame_tile.y + tile_pixel / w) * u_frame_tile.w + u_frame_tile.x
                + tile_pixel % w;
-    if (u_frame_by_normal)           // the same bits in every program that sees this frame
-        pixel = hash_pcg(floatBitsToUint(N.x) ^ hash_pcg(floatBitsToUint(N.y)
-                         ^ hash_pcg(floatBitsToUint(N.z))));
     // the turn's (cos, sin) without trigonometry (the Mipmapped refinement takes a frame per
     // (node, receiver) pair): t = tan(phi / 2) uniform in [-1, 1] is phi in [-90, 90] degrees,
     // a hash bit adds a half turn; phi's density then varies by at most 2x around the circle,

@@ -121,7 +121,7 @@ def test_a_dithered_receiver_joins_only_a_block_whose_cone_holds_its_normal():
 def test_white_furnace_has_no_hole_where_the_tree_is_split(furnace):
     """Constant radiance all around: a node lost between the far walk of a block and the near
     walks of its receivers would leave a dark hole. Per pixel, Hybrid with sharing stays within
-    4.5% of L x the BRDF's directional albedo (numpy; measured 4.2%, Classic 3.8%: entries the
+    4.5% of L x the BRDF's directional albedo (numpy; measured 4.0%, Classic 3.7%: entries the
     receiver's horizon cuts, the shell's points quantised into micro-pixels; against Classic,
     before its frames turned per receiver, the worst pixel measured 1.8-3.7% over 9 grid
     offsets, square blocks without the dither 1.8-5.4%; a lost node would be a hole of its
@@ -326,10 +326,7 @@ def test_passes_move_the_block_grid_and_average_the_block_steps_away(demo_religh
     boundary stay below 1.7x those inside (today's aligned grid: 1.9x; Classic M = 16: 1.2x;
     random offsets measured 1.2-1.55x), and the 4x4-pooled error against Classic at M = 32 (4
     passes) is below 5% (today 5.8%; Classic M = 16 3.0%; measured 2.8-4.3%). One pass keeps
-    its steps, on its own grid (measured 2.2-2.4x there). Those figures predate the block
-    levels and the frames turned per block and pass (lib/microbuffer.glsl: mb_frame); measured
-    2026-12-06: worst 1.10x and 1.5% (1.11x and 2.3% with one fixed frame per block; Classic
-    M = 16, 4 passes: 1.04x and 1.1%)."""
+    its steps, on its own grid (measured 2.2-2.4x there)."""
     from app.bench.image_metrics import relative_rmse
     from tests.support.block_steps import block_steps
     from app.demo.room import default_views
@@ -358,13 +355,13 @@ def test_one_pass_has_weaker_block_steps(demo_relighter):
     """Hybrid at M = 16 on the demo close-up, 96 x 96, one pass (the grid aligned). Receivers
     near a block's edge may join the neighbouring block (farfield.DITHER), so a block's edge is
     a ragged band: adjacent-pixel differences across the block grid are below 1.8x those inside
-    (measured 1.43x; square blocks 2.69x, Classic M = 16 1.10x), and the 4x4-pooled error
-    against Classic at M = 32 is below the square blocks' and below 6% (measured 4.4% against
-    5.9%). Classic M = 16 measured 4.4% with the unturned frame and 1.8% now: its frames turn
+    (measured 1.47x; square blocks 2.55x, Classic M = 16 1.10x), and the 4x4-pooled error
+    against Classic at M = 32 is below the square blocks' and below 6% (measured 5.0% against
+    6.4%). Classic M = 16 measured 4.4% with the unturned frame and 1.7% now: its frames turn
     per receiver (lib/microbuffer.glsl: mb_frame), so its quantisation is noise the pooling
-    averages, while a block's receivers share one turn (one frame per block before: Hybrid
-    5.0%). Measured without the block levels, which take out most of what is left
-    (tests/pbgi/test_block_levels.py: 2.0%) - of the square blocks' steps too (1.84x)."""
+    averages, while a block's receivers share one frame. Measured without the block levels,
+    which take out most of what is left (tests/pbgi/test_block_levels.py: 2.3%) - of the square
+    blocks' steps too (1.84x)."""
     from app.bench.image_metrics import relative_rmse
     from tests.support.block_steps import block_steps
     from app.demo.room import default_views

@@ -13,6 +13,14 @@ uint hash_pcg(uint x) {
 }
 float hash_unit(uint h) { return float(h >> 8u) * (1.0 / 16777216.0); }   // [0, 1)
 
+// A receiver's pixel in the whole image from its pixel in a tile (tile = x0, y0, tile width,
+// image width): per-receiver seeds follow the image, so a tile's receivers get the seeds one
+// render of the image gives those pixels, not the same seeds in every tile.
+uint image_pixel(uvec4 tile, uint tile_pixel) {
+    uint w = max(tile.z, 1u);
+    return (tile.y + tile_pixel / w) * tile.w + tile.x + tile_pixel % w;
+}
+
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 
 // Clamp before pow(1 - x, 5): llvmpipe returns NaN for x slightly above 1.

@@ -50,9 +50,6 @@ struct LobeFrame {
     uint split;      // rings of the inner piece (= rings with one piece)
 };
 
-uint lobe_hash(uint x) { return hash_pcg(x); }
-float lobe_unit(uint h) { return hash_unit(h); }
-
 // The lobe micro-buffer of a receiver whose narrowest lobe has alpha ``aw`` and widest ``amax``
 // (lobe_frame_for picks them from its lobes). One lobe, or two of similar width: one piece, the
 // warp of ``aw`` over the whole domain (tan theta_h <= LOBE_DOMAIN amax). Two lobes of very
@@ -71,8 +68,8 @@ LobeFrame lobe_frame(vec3 N, vec3 V, float aw, float amax, float tan_floor, uint
     amax = max(amax, aw);
     float d2 = LOBE_DOMAIN * LOBE_DOMAIN;
     f.a2 = aw * aw;
-    f.seed = lobe_hash(pixel * 9781u + pass * 6271u + 17u);
-    f.phi0 = TWO_PI * lobe_unit(lobe_hash(f.seed));
+    f.seed = hash_pcg(pixel * 9781u + pass * 6271u + 17u);
+    f.phi0 = TWO_PI * hash_unit(hash_pcg(f.seed));
     f.rings = rings;
     f.sectors = sectors;
     float t2 = max(d2 * amax * amax, tan_floor * tan_floor);
@@ -117,10 +114,7 @@ float lobe_spec_share(PrincipledPrepared q, float glossy_below) {
 // the tile (LobeSettings.seed_tile: x0, y0, tile width, image width), so that a tile's seeds are
 // the ones one render of the image gives the same pixels, not the same in every tile.
 uniform uvec4 u_lobe_tile;
-uint lobe_seed_pixel(uint tile_pixel) {
-    uint w = max(u_lobe_tile.z, 1u);
-    return (u_lobe_tile.y + tile_pixel / w) * u_lobe_tile.w + u_lobe_tile.x + tile_pixel % w;
-}
+uint lobe_seed_pixel(uint tile_pixel) { return image_pixel(u_lobe_tile, tile_pixel); }
 
 // The domain's floor: what the cosine micro-buffer leaves of a lobe it must not hold. Outside the
 // domain the cosine micro-buffer takes the lobe's tail, one value of f cos at each micro-pixel's
@@ -237,8 +231,8 @@ uint lobe_ring(LobeFrame f, float tan2) {
 // horizon or the micro-pixel is empty.
 void lobe_cell(LobeFrame f, uint k, out vec3 L, out float omega) {
     uint i = k / f.sectors, j = k - i * f.sectors;
-    uint h = lobe_hash(f.seed ^ (k * 2654435761u));
-    float xi1 = lobe_unit(h), xi2 = lobe_unit(lobe_hash(h));
+    uint h = hash_pcg(f.seed ^ (k * 2654435761u));
+    float xi1 = hash_unit(h), xi2 = hash_unit(hash_pcg(h));
     LobePiece p = lobe_piece(f, i >= f.split);
     float dphi = TWO_PI / float(f.sectors);
     float u = p.u0 + (float(i - p.r0) + xi1) * p.du;

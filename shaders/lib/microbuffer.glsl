@@ -48,9 +48,7 @@ uniform bool u_frame_turned;
 void mb_frame(vec3 N, uint tile_pixel, out vec3 T, out vec3 B) {
     orthonormal_basis(N, T, B);
     if (!u_frame_turned) return;
-    uint w = max(u_frame_tile.z, 1u);
-    uint pixel = (u_frame_tile.y + tile_pixel / w) * u_frame_tile.w + u_frame_tile.x
-               + tile_pixel % w;
+    uint pixel = image_pixel(u_frame_tile, tile_pixel);
     // the turn's (cos, sin) without trigonometry (the Mipmapped refinement takes a frame per
     // (node, receiver) pair): t = tan(phi / 2) uniform in [-1, 1] is phi in [-90, 90] degrees,
     // a hash bit adds a half turn; phi's density then varies by at most 2x around the circle,

@@ -75,7 +75,7 @@ void main() {
     float ball_radius = share_ball(i);
     N = share_frame(i);
     vec3 T, B;
-    orthonormal_basis(N, T, B);         // a block's (or its receiver's) fixed frame
+    mb_frame_shared(N, share_seed(i), receiver_pixel(rid), T, B);   // its block's, or its own
 #else
     vec3 T, B;
     mb_frame(N, receiver_pixel(rid), T, B);

@@ -21,8 +21,9 @@
 // each micro-pixel weighted by f cos(theta) times its own solid angle; the cosine loop then
 // leaves them out inside the lobe's domain (lobe_inside), so the two loops split the directions -
 // except the specular lobe near glossy_below, which the two share (lobe_spec_share).
-// Without FRAME_NORMALS the micro-buffer is in the receiver's own frame, turned about N per
-// receiver and pass or not, as its cut drew it (lib/microbuffer.glsl: mb_frame).
+// The micro-buffer is in the frame its cut drew it in (lib/microbuffer.glsl: mb_frame): the
+// receiver's own, turned about N per receiver and pass or not, or with FRAME_NORMALS its
+// block's, turned per block and pass (frames[i].seed).
 // With IRRADIANCE the BRDF is a white Lambertian one, f = 1 / pi, whatever the material: the output
 // is E / pi, the diffuse outgoing radiance per unit albedo (the asset's surfel bounce and the
 // differential rendering of the scan, app/pbgi/renderer.py's gather_points).
@@ -153,7 +154,7 @@ void main() {
     vec3 T, B;                           // the micro-buffer frame
 #ifdef FRAME_NORMALS
     vec3 A = frame_normal(i);
-    orthonormal_basis(A, T, B);
+    mb_frame_shared(A, frame_seed(i), receiver_pixel(rid), T, B);   // as its walks drew it
     vec3 n_local = vec3(dot(N, T), dot(N, B), dot(N, A));   // the receiver's normal, A's frame
     vec3 level = frame_level(i);                              // on the block's far entries
 #elif defined(RADIANCE_CUBEMAP)

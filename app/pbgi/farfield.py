@@ -73,8 +73,8 @@ the worst ratio over every phase of the 4 x 4 grid was 1.2-1.55 (aligned 1.9, Cl
 the 4x4-pooled error 2.8-4.3% (aligned 5.8%, Classic 3.0%); at 96 x 96 2 passes give 1.8, 8
 passes 1.3. Frame time unchanged (11 interleaved frames: median 302 ms vs 304 ms aligned).
 Tried and dropped: tilting each block's frame by a random angle up to one micro-pixel per pass
-(a stand-in for a random azimuth, which the gather's frame - orthonormal_basis of the normal -
-cannot express): blocks become independent, one pass gets worse (ratio 2.86), 4 passes 1.84;
+(a stand-in for the random azimuth the gather's frame could not express then): blocks become
+independent, one pass gets worse (ratio 2.86), 4 passes 1.84;
 with the offset no better than the offset alone. Looking the block buffer up through each
 receiver's own frame instead of copying it: a second quantisation on top (ratio 4.8, error
 8.9%). Leaving the far nodes brighter than 4x the scene's mean to each receiver (drawn in its
@@ -95,6 +95,19 @@ M = 32: 96 x 96 close-up at M 16, across / inside 3.19 / 2.44% (ratio 1.31; with
 4.4%); 128 x 128 whole view at M 24, 3.4 / 1.8% (without 4.7 / 3.1%, Classic M 24 4.5 / 1.3%).
 The cost: two irradiance gathers per block and a least-squares fit on the CPU, about 3% of the
 frame (256 x 256: 24 of ~800 ms), plus the cube map once per room and asset position (~1 s).
+
+Turned frames (issue 12). Classic's receivers turn their micro-buffer frames about the normal by
+a random angle per pixel and pass (lib/microbuffer.glsl: mb_frame), which makes their
+quantisation noise. A block turns too, by one angle per block and pass: the far walk, the near
+walks and the gather take it from the row's record (ShareRow.seed, Frame.seed; a receiver
+without a block has its own pixel's turn). The seed is the block's square (square_seeds), the
+same for a layer's tiles and for one render of the layer. Seeding by the block's axis was tried
+first: every block of a plane took one turn. Demo close-up, diffuse, M 16, one run against the
+fixed frames (4x4-pooled error against Classic at M = 32): 160 x 160, single passes 3.3 ->
+2.6% (mean of 8), 4 passes 2.0 -> 1.3%, 8 passes 1.8 -> 1.05% (Classic at M 16: 1.8% one pass,
+1.3% four); 96 x 96 one pass, levels 2.2 -> 2.0%, block-step ratio 1.30 -> 1.25; the mean of 8
+passes of a quad at 2 degrees 9% -> 1% off Classic's (the fixed frames' error was the same in
+every pass). Frame time unchanged (256 x 256, M 24: 704-709 against 710-711 ms).
 
 Batches (``begin_group``). A frame whose receivers do not fit one batch (the memory budget, or
 the micro-buffer image's 16384 rows: a 256 x 256 close-up holds about 50,000 receivers) is
@@ -145,8 +158,9 @@ from app.material import Material
 from app.pbgi.block_levels import REACH, block_levels, neighbour_pairs, screen_centres
 from app.pbgi.classic import ClassicCut
 from app.pbgi.gbuffer import material_table, r2_point
-from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, GATHER_OUTPUT, IMAGE, MB_ENTRY,
-                                 RECEIVER, SHARE_NONE, SHARE_ROW, SSBO, dispatch_groups)
+from app.pbgi.gpu_layout import (BLOCK_OF, CLASSIC_STATE, FRAME, FRAME_SEED_BLOCK, GATHER_OUTPUT,
+                                 IMAGE, MB_ENTRY, RECEIVER, SHARE_NONE, SHARE_ROW, SSBO,
+                                 dispatch_groups)
 from app.pbgi.microbuffer import ENTRY_BYTES, MicroBuffers, entries
 from app.pbgi.modebase import Batch, CutFigures, CutFinder
 from app.pbgi.stats import ShareFigures
@@ -244,14 +258,15 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     Returns block_of (n,) uint32 (NONE: walks alone), and per block: centre (B, 3), axis (B, 3),
     radius D of its ball (B,), rho (B,) the receivers' largest distance from the centre (of its
     square, guests left out), level (B,), size (B,) receivers, first (B,) and last (B,)
-    receiver.
+    receiver, seed (B,) its frame's turn (square_seeds).
     """
     n = len(pixels)
     block_of = np.full(n, NONE, np.uint32)
     empty = {"block_of": block_of, "centre": np.zeros((0, 3)), "axis": np.zeros((0, 3)),
              "ball": np.zeros(0), "rho": np.zeros(0), "level": np.zeros(0, np.int64),
              "size": np.zeros(0, np.int64),
-             "first": np.zeros(0, np.int64), "last": np.zeros(0, np.int64)}
+             "first": np.zeros(0, np.int64), "last": np.zeros(0, np.int64),
+             "seed": np.zeros(0, np.uint32)}
     if n == 0 or tolerance <= 0 or max_level < 1:
         return empty
     tol = tolerance * micro_pixel_angle(m)
@@ -342,9 +357,12 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     np.maximum.at(last, bid, idx)
     level = np.zeros(nb, np.int64)
     level[bid] = chosen_level[idx]
+    square = np.zeros(nb, np.int64)
+    square[bid] = chosen_key[idx]
     rho = np.maximum(rho, 1e-9)
     return {"block_of": block_of, "centre": c, "axis": a, "ball": rho / tol, "rho": rho,
-            "level": level, "size": cnt, "first": first, "last": last}
+            "level": level, "size": cnt, "first": first, "last": last,
+            "seed": square_seeds(level, square % stride, square // stride)}
 
 
 def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[int, int]:
@@ -356,6 +374,22 @@ def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[in
     side = 1 << int(max_level)
     u, v = r2_point(int(pass_index))
     return int(u * side), int(v * side)
+
+
+def square_seeds(level: np.ndarray, sx: np.ndarray, sy: np.ndarray) -> np.ndarray:
+    """The frame seeds (ShareRow.seed, Frame.seed) of blocks on squares (sx, sy) of their
+    ``level``'s grid: each block's micro-buffer frame turns about its axis by its own angle per
+    pass (lib/microbuffer.glsl: mb_frame_shared), so neighbouring blocks quantise their far
+    field differently and the passes average that error, as Classic's receivers do. Why the
+    square: it is what the block is, whatever the order of the receivers it was chosen from
+    (a layer's tiles and one render of the layer number their blocks differently, and must
+    turn them alike) - not the block's axis, which every block of a plane shares (tried: a wall
+    or a floor took one turn for all its blocks, README "Frames turned per receiver")."""
+    h = (np.asarray(level, np.uint64) * np.uint64(0x9E3779B1)
+         ^ np.asarray(sx, np.uint64) * np.uint64(0x85EBCA77)
+         ^ np.asarray(sy, np.uint64) * np.uint64(0xC2B2AE3D))
+    return ((h & np.uint64(~FRAME_SEED_BLOCK & 0xFFFFFFFF))
+            | np.uint64(FRAME_SEED_BLOCK)).astype(np.uint32)
 
 
 @dataclass
@@ -433,7 +467,8 @@ class _Group:
         local[ids] = np.arange(len(ids), dtype=np.uint32)
         block_of = np.full(count, NONE, np.uint32)
         block_of[has] = local[mine[has]]
-        out = {k: g[k][ids] for k in ("centre", "axis", "ball", "rho", "level", "size")}
+        out = {k: g[k][ids] for k in ("centre", "axis", "ball", "rho", "level", "size",
+                                      "seed")}
         at = np.flatnonzero(has)
         out["first"] = np.full(len(ids), count, np.int64)
         np.minimum.at(out["first"], block_of[at].astype(np.int64), at)
@@ -642,13 +677,16 @@ class FarFieldShare(CutFinder):
                 balls["center"] = blocks["centre"]
                 balls["ball"] = blocks["ball"]
                 balls["frame"] = blocks["axis"]
+                balls["seed"] = blocks["seed"]
                 for b0 in range(nc, nb, cap):
                     b1 = min(nb, b0 + cap)
                     chunks += 1
                     self.block_mb.prepare(m, cap, b1 - b0)
                     ball_buf = self._buffer(balls[b0:b1])
                     res = self.far.fill(Batch(self.block_mb, pseudo_buf, b0, b1 - b0, m, nodes,
-                                              cell_size), share=ball_buf)
+                                              cell_size, pass_index=batch.pass_index,
+                                              turned_frames=batch.turned_frames),
+                                        share=ball_buf)
                     far_visited[b0:b1] = res.visited
                     far_done[b0:b1] = res.done
                     rounds += res.rounds
@@ -665,6 +703,8 @@ class FarFieldShare(CutFinder):
                         self._merge(mb, block_buf, r0, r1, b0, b1)
                     peak_bytes = max(peak_bytes, self.block_mb.nbytes)
                     if levelled:        # the far field's irradiance at the block's centre
+                        # (unturned: a Lambertian gather about the buffer's own axis weighs a
+                        # micro-pixel by its area alone, whatever the frame's turn)
                         tl = time.perf_counter()
                         batch.gather.run(pseudo_buf, white, far_e, b0, b1 - b0, m,
                                          np.zeros(3), mb=self.block_mb, nodes=nodes,
@@ -695,12 +735,17 @@ class FarFieldShare(CutFinder):
             near_balls["center"][has] = blocks["centre"][block_of[has]]
             near_balls["ball"][has] = blocks["ball"][block_of[has]]
             near_balls["frame"][has] = blocks["axis"][block_of[has]]
-            res = self.near.fill(Batch(mb, receivers, first, count, m, nodes, cell_size),
+            near_balls["seed"] = SHARE_NONE
+            near_balls["seed"][has] = blocks["seed"][block_of[has]]
+            res = self.near.fill(Batch(mb, receivers, first, count, m, nodes, cell_size,
+                                       seed_tile=batch.seed_tile, pass_index=batch.pass_index,
+                                       turned_frames=batch.turned_frames),
                                  share=self._buffer(near_balls))
             if self.frames is not None:
                 self.frames.release()
             frames = FRAME.zeros(count)
             frames["normal"] = near_balls["frame"]
+            frames["seed"] = near_balls["seed"]
             frames["level"] = 1.0
             frames["level"][has] = levels[block_of[has]]
             self.frames = ctx.buffer(frames.tobytes())

@@ -93,6 +93,8 @@ MB_EMPTY = 0xFFFFFFFF         # an empty micro-buffer entry (key and node)
 MB_FAR_BIT = 0x80000000       # in an entry's node: copied from a far-field block (Hybrid's merge;
                               # the gather scales those by the block's level, block_levels.py)
 SHARE_NONE = 0xFFFFFFFF       # a receiver without a far-field block
+FRAME_SEED_BLOCK = 0x80000000  # in a frame seed (ShareRow.seed, Frame.seed): a far-field block's
+                              # id follows, not an image pixel (lib/microbuffer.glsl: mb_frame)
 WALK_DONE = 1                 # walk state flags: the walk has finished
 WALK_CUT_SHORT = 2            # ... a loop of it was cut short by the driver (llvmpipe)
 
@@ -314,7 +316,9 @@ SHARE_ROW = Record("ShareRow", (
     Field("center", "vec3", "centre of the ball that splits the tree for this row"),
     Field("ball", "float", "its radius D: a node outside is far; +inf: nothing is far"),
     Field("frame", "vec3", "unit normal whose frame and horizon the row's micro-buffer uses"),
-    Pad(1),
+    Field("seed", "uint", "that frame's turn (lib/microbuffer.glsl: mb_frame_shared): "
+                          "FRAME_SEED_BLOCK | the row's block id, or SHARE_NONE: the row's "
+                          "receiver's own pixel"),
 ), word="float", doc="far-field sharing: per micro-buffer row of a SHARE_SPLIT walk")
 
 BLOCK_OF = Record("BlockOf", (
@@ -323,7 +327,7 @@ BLOCK_OF = Record("BlockOf", (
 
 FRAME = Record("Frame", (
     Field("normal", "vec3", "unit normal whose frame the receiver's micro-buffer is in"),
-    Pad(1),
+    Field("seed", "uint", "that frame's turn, as its walks drew it (ShareRow.seed)"),
     Field("level", "vec3", "factor on the entries copied from its block (MB_FAR_BIT): the "
                            "block's level (app/pbgi/block_levels.py); 1 without a block"),
     Pad(1),
@@ -389,6 +393,7 @@ def bindings_glsl() -> str:
 #define MB_EMPTY {_u(MB_EMPTY)}   // empty micro-buffer entry (key and node)
 #define MB_FAR_BIT {_u(MB_FAR_BIT)}  // entry node: copied from a far-field block (Hybrid)
 #define SHARE_NONE {_u(SHARE_NONE)} // receiver without a far-field block
+#define FRAME_SEED_BLOCK {_u(FRAME_SEED_BLOCK)} // frame seed: a far-field block's id follows
 #define WALK_DONE {_u(WALK_DONE)}           // walk state flags
 #define WALK_CUT_SHORT {_u(WALK_CUT_SHORT)}
 #define BSH_TEX_LEAF_BIT {_u(int(layout.LEAF_BIT))}  // in BshLink.count_flags, as in the node record

@@ -3,8 +3,8 @@
 A micro-buffer is an M x M image of the receiver's upper hemisphere under the Nusselt projection
 Phi(x, y) = (x, y, sqrt(1 - x^2 - y^2)) (paper Section 5.2, Ritschel et al. 2009 Section 2.3),
 x, y in [-1, 1] along the receiver's frame: orthonormal_basis(N) (lib/principled.glsl) turned
-about N by a random angle per receiver and pass (``set_frame_uniforms``), except in Hybrid's
-shared blocks, whose frame is fixed.
+about N by a random angle per receiver and pass (``set_frame_uniforms``; in Hybrid's shared
+blocks per block and pass).
 
 Micro-pixel table (computed here once per M, uploaded as gpu_layout.MB_DIRECTION texels):
   * ``weight`` = area of (pixel square intersected with the unit disc) = the pixel's
@@ -83,10 +83,12 @@ def set_frame_uniforms(prog, seed_tile=(0, 0, 1, 1), pass_index: int = 0,
     for its children, is the same for neighbouring receivers, and a smooth diffuse surface shows
     the grid as lines and facets (Classic, README "Frames turned per receiver"). A random turn
     per receiver makes the same quantisation error noise, which the passes average. Hybrid's
-    blocks share one micro-buffer among receivers and keep the fixed frame; their grid moves
-    per pass instead (app/pbgi/farfield.py). The point gathers (app/pbgi/point_gather.py) keep
-    it too: no passes average their noise, and the asset's glossy bounce fits a plane to each
-    surfel's views, which noise from surfel to surfel makes worse."""
+    blocks share one micro-buffer among receivers: the programs that draw and read it take
+    its seed from their records instead (``mb_frame_shared``; farfield.block_seeds), one turn
+    per block and pass, and the same uniforms give the pass and the pixels of receivers
+    without a block. The point gathers (app/pbgi/point_gather.py) keep the fixed frame: no
+    passes average their noise, and the asset's glossy bounce fits a plane to each surfel's
+    views, which noise from surfel to surfel makes worse."""
     values = {"u_frame_tile": tuple(int(v) for v in seed_tile), "u_frame_pass": int(pass_index),
               "u_frame_turned": bool(turned)}
     for name, value in values.items():

@@ -40,15 +40,20 @@
 // one render of the image gives them) and the pass (u_frame_pass). Every shader that writes or
 // reads a receiver's own micro-buffer takes its frame from here, so walk, rasteriser and gather
 // agree. u_frame_turned 0 keeps orthonormal_basis(N): the point gathers (no passes average
-// their noise), and Hybrid's block buffers, whose grid the passes move instead
-// (app/pbgi/farfield.py; the receivers' gather reads those with FRAME_NORMALS).
+// their noise).
+// Hybrid's far-field blocks (app/pbgi/farfield.py) share one micro-buffer among receivers: the
+// block's far walk draws it in the frame of its cone axis, the merge copies it into its
+// receivers' buffers, and their near walks and gather (FRAME_NORMALS) complete and read it in
+// that frame. Those programs take the seed from the row's record instead of a pixel
+// (mb_frame_seeded; ShareRow.seed, Frame.seed): FRAME_SEED_BLOCK | the block's id, one turn
+// per block and pass, or SHARE_NONE for a receiver without a block (its own pixel's turn).
 uniform uvec4 u_frame_tile;
 uniform uint u_frame_pass;
 uniform bool u_frame_turned;
-void mb_frame(vec3 N, uint tile_pixel, out vec3 T, out vec3 B) {
+void mb_frame_seeded(vec3 N, uint seed, out vec3 T, out vec3 B) {
     orthonormal_basis(N, T, B);
     if (!u_frame_turned) return;
-    uint pixel = image_pixel(u_frame_tile, tile_pixel);
+    uint pixel = seed;
     // the turn's (cos, sin) without trigonometry (the Mipmapped refinement takes a frame per
     // (node, receiver) pair): t = tan(phi / 2) uniform in [-1, 1] is phi in [-90, 90] degrees,
     // a hash bit adds a half turn; phi's density then varies by at most 2x around the circle,
@@ -60,6 +65,16 @@ void mb_frame(vec3 N, uint tile_pixel, out vec3 T, out vec3 B) {
     vec3 t = T;
     T = c * t + s * B;
     B = c * B - s * t;
+}
+
+// The receiver's own frame: seeded by its pixel in the whole image.
+void mb_frame(vec3 N, uint tile_pixel, out vec3 T, out vec3 B) {
+    mb_frame_seeded(N, image_pixel(u_frame_tile, tile_pixel), T, B);
+}
+
+// A row's frame in Hybrid's sharing: its block's turn, or its receiver's own (SHARE_NONE).
+void mb_frame_shared(vec3 N, uint seed, uint tile_pixel, out vec3 T, out vec3 B) {
+    mb_frame_seeded(N, seed == SHARE_NONE ? image_pixel(u_frame_tile, tile_pixel) : seed, T, B);
 }
 
 uint mb_extra_prefix(uint x, uint y) { return mb_bands(x, y).prefix; }

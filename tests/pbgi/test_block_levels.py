@@ -154,12 +154,13 @@ def test_the_level_scales_the_blocks_far_entries_only(demo_relighter, monkeypatc
 @pytest.mark.parametrize("size,m,view", [(96, 16, "closeup"), (128, 24, "whole")])
 def test_levels_take_the_block_steps_out_of_a_render(demo_relighter, size, m, view):
     """Hybrid in one pass on the demo, diffuse, against Classic at M = 32: with the levels the
-    4x4-pooled error is at most 0.7x without them (measured 96 / M 16 close-up 5.0 -> 2.3%,
-    128 / M 24 whole 3.0 -> 1.7%) and the adjacent-pixel differences across the block grid
-    smaller (4.78 -> 3.17%, 5.17 -> 4.89%); on the close-up the differences fall below
-    Classic's at the same M (4.89%) and the pooled error within 1 point of Classic's (1.7%; 4.4%
-    before Classic's frames turned per receiver, lib/microbuffer.glsl: mb_frame - a block's
-    receivers share one frame, so Hybrid keeps some of the structured error Classic lost)."""
+    4x4-pooled error is at most 0.7x without them (measured 96 / M 16 close-up 3.7 -> 2.0%,
+    128 / M 24 whole 2.5 -> 1.6%) and the adjacent-pixel differences across the block grid
+    smaller (4.15 -> 2.98%, 5.20 -> 4.85%); on the close-up the differences fall below
+    Classic's at the same M (4.83%) and the pooled error within 1 point of Classic's (1.8%).
+    Before the blocks' frames turned per block and pass (lib/microbuffer.glsl:
+    mb_frame_shared), with one fixed frame per block: 5.0 -> 2.2%, 3.1 -> 1.8%; across 4.78 ->
+    3.17%, 5.17 -> 4.89%."""
     from app.bench.image_metrics import relative_rmse
     from app.demo.room import default_views
     from tests.support.block_steps import block_steps

@@ -328,11 +328,13 @@ def test_bench_classic_from_the_command_line(capsys):
 def test_render_cli_modes_give_classic_s_image(tmp_path):
     """`scanlight render --mode mipmapped|hybrid --parallax-tolerance 0` writes the same EXR as
     --mode classic (the same cut), with the per-mode figures in the stats JSON; the default
-    Hybrid (far-field sharing) is close to it in the mean of 8 passes (measured 0.6%; a single
-    pass's mean over this image's few dozen receivers - GI at half resolution - moves by up to
-    3.4% from pass to pass at M 12 as the receivers' frames turn, lib/microbuffer.glsl:
-    mb_frame, and a shared block's frame does not turn with them: one pass of each measured
-    2.8% apart); bad factors are usage errors."""
+    Hybrid (far-field sharing) is close to it in the mean of 8 passes (a single pass's mean over
+    this image's few dozen receivers - GI at half resolution - moves by up to 3.4% from pass to
+    pass at M 12 as the receivers' frames turn, lib/microbuffer.glsl: mb_frame). Its 24
+    receivers form no block, and a receiver without a block turns its frame as in Classic
+    (mb_frame_shared), so the two images agree to float rounding (when Hybrid kept the fixed
+    frame for them: 0.6% apart in the mean of 8 passes, 2.8% in one pass). Bad factors are
+    usage errors."""
     import json
 
     from app.cli import main
@@ -359,15 +361,15 @@ def test_render_cli_modes_give_classic_s_image(tmp_path):
     assert images["classic"].max() > 0
     for mode in ("mipmapped", "hybrid"):
         assert np.allclose(images[mode], images["classic"], rtol=1e-5, atol=1e-7), mode
-    means = {}
+    passes8 = {}
     for mode in ("classic", "hybrid"):
         out = tmp_path / f"{mode}_passes.exr"
         assert main(["render", "--cloud", str(tmp_path / "room.ply"), "--object",
                      str(tmp_path / "obj.json"), "--camera", str(tmp_path / "cam.json"),
                      "--mode", mode, "--microbuffer", "12", "--passes", "8",
                      "--out", str(out)]) == 0
-        means[mode] = read_exr(out).rgb.mean()
-    assert abs(means["hybrid"] / means["classic"] - 1) < 0.02, means
+        passes8[mode] = read_exr(out).rgb
+    assert np.allclose(passes8["hybrid"], passes8["classic"], rtol=1e-4, atol=1e-6)
     with pytest.raises(SystemExit):
         main(["render", "--omega-tr-factor", "x"])
     assert main(["render", "--cloud", str(tmp_path / "room.ply"), "--object",

@@ -187,10 +187,12 @@ void main() {
     put(share_center(i));
     put(share_ball(i));
     put(share_frame(i));
+    put(share_seed(i));
 #elif MODE == 10
     put(share_block(i));
 #elif MODE == 11
     put(frame_normal(i));
+    put(frame_seed(i));
     put(frame_level(i));
 #elif MODE == 12
     gather_output_store(i, GatherOutput(vec3(float(i), float(i) + 0.5, -float(i)),

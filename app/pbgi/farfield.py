@@ -104,10 +104,13 @@ without a block has its own pixel's turn). The seed is the block's square (squar
 same for a layer's tiles and for one render of the layer. Seeding by the block's axis was tried
 first: every block of a plane took one turn. Demo close-up, diffuse, M 16, one run against the
 fixed frames (4x4-pooled error against Classic at M = 32): 160 x 160, single passes 3.3 ->
-2.6% (mean of 8), 4 passes 2.0 -> 1.3%, 8 passes 1.8 -> 1.05% (Classic at M 16: 1.8% one pass,
-1.3% four); 96 x 96 one pass, levels 2.2 -> 2.0%, block-step ratio 1.30 -> 1.25; the mean of 8
-passes of a quad at 2 degrees 9% -> 1% off Classic's (the fixed frames' error was the same in
-every pass). Frame time unchanged (256 x 256, M 24: 704-709 against 710-711 ms).
+2.5% (mean of 8), 4 passes 2.0 -> 1.2%, 8 passes 1.8 -> 1.0% (Classic at M 16: 1.8% one pass,
+1.3% four); 96 x 96 with the levels, single passes 2.8 -> 2.5% (mean of passes 0-3), block-step
+ratio 1.40 -> 1.36 (mean of 8); the mean of 8 passes of a quad at 2 degrees 9% -> 2.6% off
+Classic's (the fixed frames' error was the same in every pass). One pass is one draw of its
+blocks' turns, so a single pass can be worse than with the fixed frames (96 x 96: 2.1-3.4%
+over passes 0-7, fixed 2.6-3.2%). Frame time unchanged (256 x 256, M 24: 704-709 against
+710-711 ms).
 
 Batches (``begin_group``). A frame whose receivers do not fit one batch (the memory budget, or
 the micro-buffer image's 16384 rows: a 256 x 256 close-up holds about 50,000 receivers) is
@@ -247,7 +250,7 @@ def _groups(key: np.ndarray, span: int):
 def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray, width: int,
                   m: int, tolerance: float, max_level: int = DEFAULT_MAX_LEVEL,
                   max_cone: float = DEFAULT_MAX_CONE, min_block: int = MIN_BLOCK,
-                  offset=(0, 0), dither: bool = False) -> dict:
+                  offset=(0, 0), dither: bool = False, seed_origin=(0, 0)) -> dict:
     """Per receiver, the coarsest usable block (see the module docstring).
 
     ``offset`` (dx, dy) >= 0 shifts the block grid: the blocks are the aligned squares of pixel
@@ -258,7 +261,8 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     Returns block_of (n,) uint32 (NONE: walks alone), and per block: centre (B, 3), axis (B, 3),
     radius D of its ball (B,), rho (B,) the receivers' largest distance from the centre (of its
     square, guests left out), level (B,), size (B,) receivers, first (B,) and last (B,)
-    receiver, seed (B,) its frame's turn (square_seeds).
+    receiver, seed (B,) its frame's turn (square_seeds; ``seed_origin``: the pixels' origin in
+    the image).
     """
     n = len(pixels)
     block_of = np.full(n, NONE, np.uint32)
@@ -362,7 +366,7 @@ def choose_blocks(pixels: np.ndarray, positions: np.ndarray, normals: np.ndarray
     rho = np.maximum(rho, 1e-9)
     return {"block_of": block_of, "centre": c, "axis": a, "ball": rho / tol, "rho": rho,
             "level": level, "size": cnt, "first": first, "last": last,
-            "seed": square_seeds(level, square % stride, square // stride)}
+            "seed": square_seeds(level, square % stride, square // stride, seed_origin)}
 
 
 def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[int, int]:
@@ -376,7 +380,8 @@ def grid_offset(pass_index: int, max_level: int = DEFAULT_MAX_LEVEL) -> tuple[in
     return int(u * side), int(v * side)
 
 
-def square_seeds(level: np.ndarray, sx: np.ndarray, sy: np.ndarray) -> np.ndarray:
+def square_seeds(level: np.ndarray, sx: np.ndarray, sy: np.ndarray,
+                 origin=(0, 0)) -> np.ndarray:
     """The frame seeds (ShareRow.seed, Frame.seed) of blocks on squares (sx, sy) of their
     ``level``'s grid: each block's micro-buffer frame turns about its axis by its own angle per
     pass (lib/microbuffer.glsl: mb_frame_shared), so neighbouring blocks quantise their far
@@ -384,12 +389,17 @@ def square_seeds(level: np.ndarray, sx: np.ndarray, sy: np.ndarray) -> np.ndarra
     square: it is what the block is, whatever the order of the receivers it was chosen from
     (a layer's tiles and one render of the layer number their blocks differently, and must
     turn them alike) - not the block's axis, which every block of a plane shares (tried: a wall
-    or a floor took one turn for all its blocks, README "Frames turned per receiver")."""
-    h = (np.asarray(level, np.uint64) * np.uint64(0x9E3779B1)
-         ^ np.asarray(sx, np.uint64) * np.uint64(0x85EBCA77)
-         ^ np.asarray(sy, np.uint64) * np.uint64(0xC2B2AE3D))
-    return ((h & np.uint64(~FRAME_SEED_BLOCK & 0xFFFFFFFF))
-            | np.uint64(FRAME_SEED_BLOCK)).astype(np.uint32)
+    or a floor took one turn for all its blocks, README "Frames turned per receiver").
+    ``origin`` (x0, y0): the image pixel of the grid's pixel 0. A tile rendered as a group of
+    its own has squares counted from its corner, and without its origin every such tile would
+    repeat the same turns, a pattern with the tiles' period."""
+    # (level, sx, sy) packed into 30 bits, distinct for every square of an image up to 16384
+    # pixels wide (a square at level >= 1 is at most 8200 away from the grid's corner), then
+    # XORed with the origin's hash: the same bijection for every square of one grid
+    body = ((np.asarray(level, np.int64) - 1 & 3) << 28 | (np.asarray(sy, np.int64) & 0x3FFF) << 14
+            | (np.asarray(sx, np.int64) & 0x3FFF))
+    tile = (int(origin[0]) * 0x27D4EB2F ^ int(origin[1]) * 0x165667B1) & 0x7FFFFFFF
+    return ((body ^ tile) & 0x7FFFFFFF | FRAME_SEED_BLOCK).astype(np.uint32)
 
 
 @dataclass
@@ -584,7 +594,8 @@ class FarFieldShare(CutFinder):
         for the layer's next tiles (see "Layers")."""
         layer = frame.layer
         if layer is None:
-            self._choose(frame.receivers, first, count, m, frame.tile[2], frame.pass_index)
+            self._choose(frame.receivers, first, count, m, frame.tile[2], frame.pass_index,
+                         frame.tile[:2])
             self._group.before_cut = True
             return
         rows = layer.rows[first:first + count]
@@ -596,25 +607,28 @@ class FarFieldShare(CutFinder):
             t0 = time.perf_counter()
             rec = layer.receivers[members]
             self._group = g = self._new_group(key, rec, m, layer.width, frame.pass_index,
-                                              t0)
+                                              t0, (0, 0))   # one group for all the tiles
             g.before_cut = True
         self._span = (first, grow)
 
     def _choose(self, receivers, first: int, count: int, m: int, width: int,
-                pass_index: int) -> None:
-        """Blocks over the frame's receivers ``first`` .. ``first + count - 1`` alone."""
+                pass_index: int, origin) -> None:
+        """Blocks over the frame's receivers ``first`` .. ``first + count - 1`` alone, of the
+        tile at ``origin`` (x0, y0) of the image."""
         t0 = time.perf_counter()
         rec = RECEIVER.view(receivers.read(size=RECEIVER.nbytes * count,
                                            offset=RECEIVER.nbytes * first))
-        self._group = self._new_group(None, rec, m, width, pass_index, t0)
+        self._group = self._new_group(None, rec, m, width, pass_index, t0, origin)
         self._span = (first, np.arange(count))
 
     def _new_group(self, key, rec: np.ndarray, m: int, width: int, pass_index: int,
-                   t0: float) -> _Group:
+                   t0: float, origin) -> _Group:
+        """``origin``: where the receivers' pixel 0 lies in the image, so that tiles rendered
+        as groups of their own seed their blocks' frames differently (square_seeds)."""
         self.offset = grid_offset(pass_index, self.max_level)
         blocks = choose_blocks(rec["pixel"], rec["position"], rec["normal"], width, m,
                                self.tolerance, self.max_level, self.max_cone, offset=self.offset,
-                               dither=self.dither)
+                               dither=self.dither, seed_origin=origin)
         xy, cnt = screen_centres(rec["pixel"], blocks["block_of"], len(blocks["ball"]), width)
         return _Group(key, m, blocks, xy, cnt, rec["normal"].copy(), time.perf_counter() - t0)
 
@@ -631,7 +645,8 @@ class FarFieldShare(CutFinder):
             if f0 <= first and first + count <= f0 + len(grow):
                 grp = grow[first - f0:first - f0 + count]
         if grp is None:                       # not in the group begun: a group of its own
-            self._choose(receivers, first, count, m, width, batch.pass_index)
+            self._choose(receivers, first, count, m, width, batch.pass_index,
+                         batch.seed_tile[:2])
             g, grp = self._group, self._span[1]
         t_choose, g.ms = g.ms, 0.0            # counted once, in the group's first batch
         t_before = t_choose if g.before_cut else 0.0

@@ -153,23 +153,36 @@ def test_the_level_scales_the_blocks_far_entries_only(demo_relighter, monkeypatc
 
 @pytest.mark.parametrize("size,m,view", [(96, 16, "closeup"), (128, 24, "whole")])
 def test_levels_take_the_block_steps_out_of_a_render(demo_relighter, size, m, view):
-    """Hybrid in one pass on the demo, diffuse, against Classic at M = 32: with the levels the
-    4x4-pooled error is at most 0.7x without them (measured 96 / M 16 close-up 3.7 -> 2.0%,
-    128 / M 24 whole 2.5 -> 1.6%) and the adjacent-pixel differences across the block grid
-    smaller (4.15 -> 2.98%, 5.20 -> 4.85%); on the close-up the differences fall below
-    Classic's at the same M (4.83%) and the pooled error within 1 point of Classic's (1.8%).
-    Before the blocks' frames turned per block and pass (lib/microbuffer.glsl:
-    mb_frame_shared), with one fixed frame per block: 5.0 -> 2.2%, 3.1 -> 1.8%; across 4.78 ->
-    3.17%, 5.17 -> 4.89%."""
+    """Hybrid on the demo, diffuse, one pass at a time, against Classic at M = 32 (the mean of
+    the same 4 passes): with the levels a pass's 4x4-pooled error is at most 0.85x without them
+    and its adjacent-pixel differences across the block grid are smaller; on the close-up the
+    differences fall below Classic's at the same M and the pooled error stays within 1 point of
+    Classic's. Each figure is the mean over passes 0-3: since the blocks' frames turn per block
+    and pass (lib/microbuffer.glsl: mb_frame_shared) one pass is one draw of its blocks' turns
+    (at 96 px a pass's pooled error ranged over 2.1-3.4% in passes 0-7, Classic's 1.6-2.4%).
+    Measured, means of passes 0-3, pooled error and across differences, without -> with the
+    levels: 96 / M 16 close-up 4.0 -> 2.5% and 4.5 -> 3.0% (Classic M 16 1.9%, 5.1%); 128 / M 24
+    whole view 2.5 -> 1.9% and 4.8 -> 4.5%. With one fixed frame per block (before
+    2026-12-06) the same means were 5.1 -> 2.8% and 5.1 -> 3.3%; 2.9 -> 1.9% and 5.1 -> 4.5%:
+    the turn takes out part of what the levels took out (0.56x and 0.67x then, 0.63x and 0.77x
+    now), and with the levels the two end equal or better turned."""
     from app.bench.image_metrics import relative_rmse
     from app.demo.room import default_views
     from tests.support.block_steps import block_steps
     r = demo_relighter
     cam = default_views(size, size)[view]
     mat = S.diffuse(0.6)
-    ref = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=32)).image
+    passes = 4
+    ref = r.render_passes(cam, [mat], RenderParams(mode="classic", microbuffer=32),
+                          passes=passes).image
     mask = ref[..., 3] > 0.999
-    classic = r.render(cam, [mat], RenderParams(mode="classic", microbuffer=m)).image
+
+    def measured(img, offset):
+        return relative_rmse(img, ref, mask, pool=4), block_steps(img, mask, 8, offset)["across"]
+
+    classic = np.mean([measured(r.render(cam, [mat], RenderParams(mode="classic", microbuffer=m),
+                                         pass_index=k, passes=passes).image, (0, 0))
+                       for k in range(passes)], axis=0)
     p = RenderParams(mode="hybrid", microbuffer=m)
     finder = r.mode_for(p).cut
     got = {}
@@ -177,17 +190,17 @@ def test_levels_take_the_block_steps_out_of_a_render(demo_relighter, size, m, vi
         for fit in (False, True):
             finder.level_fit = fit
             r.forget_microbuffers()
-            res = r.render(cam, [mat], p)
-            assert res.stats.completed
-            assert (res.stats.share.share_levelled > 0) == fit
-            got[fit] = (relative_rmse(res.image, ref, mask, pool=4),
-                        block_steps(res.image, mask, 8, finder.offset)["across"])
+            one = []
+            for k in range(passes):
+                res = r.render(cam, [mat], p, pass_index=k, passes=passes)
+                assert res.stats.completed
+                assert (res.stats.share.share_levelled > 0) == fit
+                one.append(measured(res.image, finder.offset))
+            got[fit] = np.mean(one, axis=0)
     finally:
         finder.level_fit = True
-    classic_pooled = relative_rmse(classic, ref, mask, pool=4)
-    classic_across = block_steps(classic, mask, 8)["across"]
-    assert got[True][0] < 0.7 * got[False][0]
+    assert got[True][0] < 0.85 * got[False][0]
     if view == "closeup":
-        assert got[True][0] < classic_pooled + 0.01
-        assert got[True][1] < classic_across
+        assert got[True][0] < classic[0] + 0.01
+        assert got[True][1] < classic[1]
     assert got[True][1] < got[False][1]

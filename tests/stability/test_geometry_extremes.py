@@ -114,6 +114,14 @@ def built():
     return get
 
 
+# Passes whose mean Mipmapped and Hybrid must match Classic's in: one pass of Hybrid is one draw
+# of its blocks' frame turns (lib/microbuffer.glsl: mb_frame_shared), and the grazing quad has
+# 8 blocks at M 8 - single passes of it ranged 0.835-0.999 against Classic's 0.885-0.929 (8
+# passes, 2026-12-06), their means within 3%; with one fixed frame per block the mean of 8 was
+# 9% off Classic's, while its pass 0 happened to be within 0.3%.
+PASSES = 4
+
+
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_degenerate_geometry_renders_finite(built, scene, mode):
@@ -122,10 +130,11 @@ def test_degenerate_geometry_renders_finite(built, scene, mode):
         res = r.render(cam, [mat], params(mode))
         rgb = assert_sane(res, f"{scene}/{mode}/{name}", min_receivers=50)
         assert rgb.max() > 0, (scene, mode, name)   # lit: the points are not lost
-        if mode in ("mipmapped", "hybrid"):
-            ref = r.render(cam, [mat], params("classic")).image
-            ref = ref[..., :3][ref[..., 3] > 0]
-            assert abs(rgb.mean() / ref.mean() - 1) < 0.05, (scene, mode, name)
+        if mode in ("mipmapped", "hybrid"):     # Classic's light, in the mean of PASSES
+            got = r.render_passes(cam, [mat], params(mode), passes=PASSES).image
+            ref = r.render_passes(cam, [mat], params("classic"), passes=PASSES).image
+            ratio = got[..., :3].sum() / ref[..., :3].sum()
+            assert abs(ratio - 1) < 0.05, (scene, mode, name, ratio)
 
 
 @pytest.mark.parametrize("mode", MODES)

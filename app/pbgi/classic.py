@@ -90,8 +90,8 @@ class ClassicCut(CutFinder):
         if "u_inv_cell_area" in prog:
             prog["u_inv_cell_area"] = 1.0 / max(batch.cell_size, 1e-9) ** 2
         prog["u_node_count"] = node_count
-        set_frame_uniforms(prog, batch.seed_tile, batch.pass_index,   # unused with SHARE_SPLIT
-                           batch.turned_frames)
+        set_frame_uniforms(prog, batch.seed_tile, batch.pass_index,   # SHARE_SPLIT: the pass,
+                           batch.turned_frames)           # and the pixels of rows alone
         nodes.set_uniforms(prog)
         groups = dispatch_groups(count, self.workgroup)
         rounds, remaining = 0, count

@@ -94,7 +94,7 @@ MB_FAR_BIT = 0x80000000       # in an entry's node: copied from a far-field bloc
                               # the gather scales those by the block's level, block_levels.py)
 SHARE_NONE = 0xFFFFFFFF       # a receiver without a far-field block
 FRAME_SEED_BLOCK = 0x80000000  # in a frame seed (ShareRow.seed, Frame.seed): a far-field block's
-                              # id follows, not an image pixel (lib/microbuffer.glsl: mb_frame)
+                              # square follows, not an image pixel (farfield.square_seeds)
 WALK_DONE = 1                 # walk state flags: the walk has finished
 WALK_CUT_SHORT = 2            # ... a loop of it was cut short by the driver (llvmpipe)
 
@@ -317,8 +317,8 @@ SHARE_ROW = Record("ShareRow", (
     Field("ball", "float", "its radius D: a node outside is far; +inf: nothing is far"),
     Field("frame", "vec3", "unit normal whose frame and horizon the row's micro-buffer uses"),
     Field("seed", "uint", "that frame's turn (lib/microbuffer.glsl: mb_frame_shared): "
-                          "FRAME_SEED_BLOCK | the row's block id, or SHARE_NONE: the row's "
-                          "receiver's own pixel"),
+                          "FRAME_SEED_BLOCK | the row's block's square (farfield.square_seeds), "
+                          "or SHARE_NONE: the row's receiver's own pixel"),
 ), word="float", doc="far-field sharing: per micro-buffer row of a SHARE_SPLIT walk")
 
 BLOCK_OF = Record("BlockOf", (
@@ -393,7 +393,7 @@ def bindings_glsl() -> str:
 #define MB_EMPTY {_u(MB_EMPTY)}   // empty micro-buffer entry (key and node)
 #define MB_FAR_BIT {_u(MB_FAR_BIT)}  // entry node: copied from a far-field block (Hybrid)
 #define SHARE_NONE {_u(SHARE_NONE)} // receiver without a far-field block
-#define FRAME_SEED_BLOCK {_u(FRAME_SEED_BLOCK)} // frame seed: a far-field block's id follows
+#define FRAME_SEED_BLOCK {_u(FRAME_SEED_BLOCK)} // frame seed: a far-field block's square follows
 #define WALK_DONE {_u(WALK_DONE)}           // walk state flags
 #define WALK_CUT_SHORT {_u(WALK_CUT_SHORT)}
 #define BSH_TEX_LEAF_BIT {_u(int(layout.LEAF_BIT))}  // in BshLink.count_flags, as in the node record

@@ -84,7 +84,7 @@ def set_frame_uniforms(prog, seed_tile=(0, 0, 1, 1), pass_index: int = 0,
     the grid as lines and facets (Classic, README "Frames turned per receiver"). A random turn
     per receiver makes the same quantisation error noise, which the passes average. Hybrid's
     blocks share one micro-buffer among receivers: the programs that draw and read it take
-    its seed from their records instead (``mb_frame_shared``; farfield.block_seeds), one turn
+    its seed from their records instead (``mb_frame_shared``; farfield.square_seeds), one turn
     per block and pass, and the same uniforms give the pass and the pixels of receivers
     without a block. The point gathers (app/pbgi/point_gather.py) keep the fixed frame: no
     passes average their noise, and the asset's glossy bounce fits a plane to each surfel's

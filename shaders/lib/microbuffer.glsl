@@ -45,20 +45,20 @@
 // block's far walk draws it in the frame of its cone axis, the merge copies it into its
 // receivers' buffers, and their near walks and gather (FRAME_NORMALS) complete and read it in
 // that frame. Those programs take the seed from the row's record instead of a pixel
-// (mb_frame_seeded; ShareRow.seed, Frame.seed): FRAME_SEED_BLOCK | the block's id, one turn
-// per block and pass, or SHARE_NONE for a receiver without a block (its own pixel's turn).
+// (mb_frame_seeded; ShareRow.seed, Frame.seed): FRAME_SEED_BLOCK | the block's square
+// (app/pbgi/farfield.py: square_seeds), one turn per block and pass, or SHARE_NONE for a
+// receiver without a block (its own pixel's turn).
 uniform uvec4 u_frame_tile;
 uniform uint u_frame_pass;
 uniform bool u_frame_turned;
 void mb_frame_seeded(vec3 N, uint seed, out vec3 T, out vec3 B) {
     orthonormal_basis(N, T, B);
     if (!u_frame_turned) return;
-    uint pixel = seed;
     // the turn's (cos, sin) without trigonometry (the Mipmapped refinement takes a frame per
     // (node, receiver) pair): t = tan(phi / 2) uniform in [-1, 1] is phi in [-90, 90] degrees,
     // a hash bit adds a half turn; phi's density then varies by at most 2x around the circle,
     // which decorrelates neighbouring receivers as well as a uniform angle
-    uint h = hash_pcg(pixel * 7919u + u_frame_pass * 104729u + 0x9e3779b9u);
+    uint h = hash_pcg(seed * 7919u + u_frame_pass * 104729u + 0x9e3779b9u);
     float q = float(h & 0xFFFFu) * (2.0 / 65535.0) - 1.0;
     float k = ((h & 0x10000u) != 0u ? -1.0 : 1.0) / (1.0 + q * q);
     float c = (1.0 - q * q) * k, s = 2.0 * q * k;

@@ -27,6 +27,8 @@
 // With IRRADIANCE the BRDF is a white Lambertian one, f = 1 / pi, whatever the material: the output
 // is E / pi, the diffuse outgoing radiance per unit albedo (the asset's surfel bounce and the
 // differential rendering of the scan, app/pbgi/renderer.py's gather_points).
+// With IRRADIANCE and COVERAGE every held entry has radiance 1: the output is the cosine-weighted
+// share of the hemisphere the micro-buffer holds (Hybrid's block levels, app/pbgi/farfield.py).
 // With GATHER_PARTS the same sums are kept apart per BRDF factor (lib/principled.glsl:
 // PrincipledParts) and stored per tile pixel as GatherParts (gen/gather_output.glsl); L_out is
 // their recombination with the receiver's own factors - the one app/pbgi/gather_parts.py repeats
@@ -208,7 +210,11 @@ void main() {
         bool far = node >= MB_FAR_BIT;
         node &= ~MB_FAR_BIT;
 #endif
+#ifdef COVERAGE
+        vec3 L = vec3(1.0);                      // every direction the buffer holds, as white
+#else
         vec3 L = node_radiance(node, w, asset_dir_first, asset_dir_width);
+#endif
 #ifdef FRAME_NORMALS
         if (far) L *= level;
 #endif

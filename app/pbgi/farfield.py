@@ -96,6 +96,19 @@ M = 32: 96 x 96 close-up at M 16, across / inside 3.19 / 2.44% (ratio 1.31; with
 The cost: two irradiance gathers per block and a least-squares fit on the CPU, about 3% of the
 frame (256 x 256: 24 of ~800 ms), plus the cube map once per room and asset position (~1 s).
 
+The ratio is taken over the share of the hemisphere the block's far field holds (``COVERAGE``,
+LEVEL_COVERAGE): far irradiance / (the cube map's irradiance x that share), the share from a
+third gather of the block's buffer with every held entry white. Without it the ratio also held
+how much of the hemisphere was far: near a close surface (a sphere's underside over the floor)
+that share falls with the height above it, the fit's neighbours sit at other heights, and in
+a room of one colour levels came out up to 1.12 away from 1 (96 x 96, M 16) and moved with
+the block grid from pass to pass - 2.4% per-pass spread in the sphere's lowest fifth against
+Classic's 0.2% (192 x 192, M 24, 8 passes). With it those levels are 1 to 1e-6
+(tests/pbgi/test_block_levels.py), and on the scan's colours the lowest fifth's spread is
+2.7 -> 1.7%, the rest's 1.9 -> 1.8%. Against Mitsuba, `balanced` on the demo close-up at 256 x
+256 (4x4-pooled, reference noise 2.1% included): diffuse one pass 3.77 -> 3.53%, four 3.45 ->
+3.40%; rough metal 0.6 4.84 -> 4.76%, 3.65 -> 3.61%; FLIP 0.074 -> 0.066, 0.065 -> 0.061.
+
 Turned frames (issue 12). Classic's receivers turn their micro-buffer frames about the normal by
 a random angle per pixel and pass (lib/microbuffer.glsl: mb_frame), which makes their
 quantisation noise. A block turns too, by one angle per block and pass: the far walk, the near
@@ -196,13 +209,18 @@ FAR_WORKGROUP = 8
 LEVEL_ENV_FACE = 128
 LEVEL_FLAT = 0.35
 LEVEL_MIN_BLOCKS = 12
+# the ratio over the share of the hemisphere the block's far field holds (the module's
+# docstring, "Block levels"); False: the ratio of the two irradiances alone (as before)
+LEVEL_COVERAGE = True
+# a block whose far field holds less of the hemisphere than this gives its neighbours no ratio
+LEVEL_MIN_COVER = 0.05
 INF = 3.0e38
 # GPU bytes besides the block micro-buffers: per receiver the near walk's resume state, ball and
 # frame, block index and the gather's frame (and level); per block its pseudo-receiver record,
-# ball and frame, the far walk's resume state and its two irradiances (the block levels).
+# ball and frame, the far walk's resume state and its three irradiances (the block levels).
 RECEIVER_BYTES = CLASSIC_STATE.nbytes + SHARE_ROW.nbytes + BLOCK_OF.nbytes + FRAME.nbytes
 BLOCK_BYTES = (RECEIVER.nbytes + SHARE_ROW.nbytes + CLASSIC_STATE.nbytes
-               + 2 * GATHER_OUTPUT.nbytes)
+               + 3 * GATHER_OUTPUT.nbytes)
 
 
 def micro_pixel_angle(m: int) -> float:
@@ -687,6 +705,7 @@ class FarFieldShare(CutFinder):
                 if levelled:
                     white = self._buffer(material_table([Material()]))
                     far_e = self._buffer(GATHER_OUTPUT.zeros(nb))
+                    cov_e = self._buffer(GATHER_OUTPUT.zeros(nb))
                     env_e = self._buffer(GATHER_OUTPUT.zeros(nb))
                 balls = SHARE_ROW.zeros(nb)
                 balls["center"] = blocks["centre"]
@@ -724,6 +743,10 @@ class FarFieldShare(CutFinder):
                         batch.gather.run(pseudo_buf, white, far_e, b0, b1 - b0, m,
                                          np.zeros(3), mb=self.block_mb, nodes=nodes,
                                          irradiance=True, turned=False)
+                        if LEVEL_COVERAGE:
+                            batch.gather.run(pseudo_buf, white, cov_e, b0, b1 - b0, m,
+                                             np.zeros(3), mb=self.block_mb, nodes=nodes,
+                                             irradiance=True, turned=False, coverage=True)
                         t_lv += time.perf_counter() - tl
             t2 = time.perf_counter()
             levels = np.ones((nb, 3))
@@ -735,8 +758,13 @@ class FarFieldShare(CutFinder):
                 e = GATHER_OUTPUT.view(far_e.read())
                 e_env = GATHER_OUTPUT.view(env_e.read())
                 ratio = e["radiance"].astype(np.float64) / np.maximum(e_env["radiance"], 1e-30)
+                if LEVEL_COVERAGE:
+                    cov = GATHER_OUTPUT.view(cov_e.read())["radiance"][:, :1].astype(np.float64)
+                    ratio /= np.maximum(cov, 1e-6)
                 ok = far_done[:nb] & (e["status"] > 0) & (e_env["status"] > 0)
                 ok &= (e_env["radiance"] > 0).all(1)
+                if LEVEL_COVERAGE:
+                    ok &= cov[:, 0] > LEVEL_MIN_COVER
                 g.remember(ids[nc:], ratio[nc:], ok[nc:])
                 self.last_irradiance = e["radiance"][nc:].copy()
             if levelled and nb:

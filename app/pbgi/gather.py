@@ -35,10 +35,13 @@ class Gather:
 
     def _prog(self, cubemap: bool, frames: bool = False, lobe: bool = False,
               irradiance: bool = False, absent: tuple = (), directional: bool = False,
-              parts: bool = False, mirror: bool = False):
-        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional, parts, mirror)
+              parts: bool = False, mirror: bool = False, coverage: bool = False):
+        key = (cubemap, frames, lobe, irradiance, tuple(absent), directional, parts, mirror,
+               coverage)
         if key not in self._progs:
             defines = {"RADIANCE_CUBEMAP": 1} if cubemap else {}
+            if coverage:
+                defines["COVERAGE"] = 1
             if parts:
                 defines["GATHER_PARTS"] = 1
             if directional:
@@ -60,7 +63,7 @@ class Gather:
             camera_rel: np.ndarray, mb=None, nodes=None, env=None, frames=None,
             lobe=None, lobe_buffers=None, irradiance: bool = False,
             absent: tuple = (), parts=None, seed_tile: tuple = (0, 0, 1, 1),
-            pass_index: int = 0, turned: bool = True) -> None:
+            pass_index: int = 0, turned: bool = True, coverage: bool = False) -> None:
         """Gather receivers [first, first + count) into ``output`` (a gpu_layout.GATHER_OUTPUT
         record per tile pixel); ``materials``: the material table (gbuffer.material_table).
         Either ``mb`` + ``nodes`` (MicroBuffers + NodeTextures: PBGI) or ``env`` (an
@@ -75,16 +78,21 @@ class Gather:
         gpu_layout.GATHER_PARTS records per tile pixel, filled too (the GATHER_PARTS variant:
         the sums kept apart per BRDF factor, app/pbgi/gather_parts.py). ``seed_tile`` (tile x0,
         y0, tile width, image width), ``pass_index`` and ``turned``: the receivers' micro-buffer
-        frames, as their cut drew them (microbuffer.set_frame_uniforms)."""
+        frames, as their cut drew them (microbuffer.set_frame_uniforms). ``coverage`` (with
+        ``irradiance`` and ``mb``): every entry the micro-buffers hold counts as radiance 1, so
+        each output is the cosine-weighted share of the hemisphere they hold."""
         if irradiance and lobe is not None:
             raise ValueError("an irradiance gather has no lobe micro-buffers")
         if irradiance and parts is not None:
             raise ValueError("an irradiance gather has no BRDF to split into parts")
-        directional = env is None and bool(getattr(nodes, "has_directional", False))
+        if coverage and (not irradiance or env is not None):
+            raise ValueError("a coverage gather is an irradiance gather of micro-buffers")
+        directional = (env is None and not coverage
+                       and bool(getattr(nodes, "has_directional", False)))
         mirror = directional and bool(getattr(nodes, "has_mirror", False))
         prog = self._prog(env is not None, frames is not None, lobe is not None, irradiance,
                           () if irradiance else tuple(absent), directional, parts is not None,
-                          mirror)
+                          mirror, coverage)
         set_frame_uniforms(prog, seed_tile, pass_index, turned)
         if mirror:
             prog["u_asset_env_texel_omega"] = nodes.mirror_environment.texel_omega

@@ -93,8 +93,9 @@ neighbourhood's mean, smooth from block to block. Demo, diffuse, one pass, again
 M = 32: 96 x 96 close-up at M 16, across / inside 3.19 / 2.44% (ratio 1.31; without 4.77 /
 3.24, 1.48), error 4.4% per pixel and 2.4% 4x4-pooled (without 7.1 / 5.2%, Classic M 16 7.8 /
 4.4%); 128 x 128 whole view at M 24, 3.4 / 1.8% (without 4.7 / 3.1%, Classic M 24 4.5 / 1.3%).
-The cost: two irradiance gathers per block and a least-squares fit on the CPU, about 3% of the
-frame (256 x 256: 24 of ~800 ms), plus the cube map once per room and asset position (~1 s).
+The cost: three small gathers per block and a least-squares fit on the CPU, about 3% of the
+frame (256 x 256: 24-25 of ~720 ms, the third gather 2-3 of them), plus the cube map once per
+room and asset position (~1 s).
 
 The ratio is taken over the share of the hemisphere the block's far field holds (``COVERAGE``,
 LEVEL_COVERAGE): far irradiance / (the cube map's irradiance x that share), the share from a

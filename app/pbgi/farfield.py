@@ -103,12 +103,13 @@ third gather of the block's buffer with every held entry white. Without it the r
 how much of the hemisphere was far: near a close surface (a sphere's underside over the floor)
 that share falls with the height above it, the fit's neighbours sit at other heights, and in
 a room of one colour levels came out up to 1.12 away from 1 (96 x 96, M 16) and moved with
-the block grid from pass to pass - 2.4% per-pass spread in the sphere's lowest fifth against
-Classic's 0.2% (192 x 192, M 24, 8 passes). With it those levels are 1 to 1e-6
-(tests/pbgi/test_block_levels.py), and on the scan's colours the lowest fifth's spread is
-2.7 -> 1.7%, the rest's 1.9 -> 1.8%. Against Mitsuba, `balanced` on the demo close-up at 256 x
-256 (4x4-pooled, reference noise 2.1% included): diffuse one pass 3.77 -> 3.53%, four 3.45 ->
-3.40%; rough metal 0.6 4.84 -> 4.76%, 3.65 -> 3.61%; FLIP 0.074 -> 0.066, 0.065 -> 0.061.
+the block grid from pass to pass - 3.7% per-pass spread (median) in the sphere's lowest fifth
+against Classic's 0.2% (192 x 192, M 24, 8 passes). With it those levels are 1 to 1e-6
+(tests/pbgi/test_block_levels.py), that spread is 0.2%, and with the scan's colours it is
+4.1 -> 0.9% (the rest of the sphere 1.0% either way; tests/pbgi/make_level_share_figure.py).
+Against Mitsuba, `balanced` on the demo close-up at 256 x 256 (4x4-pooled, reference noise
+2.1% included): diffuse one pass 3.77 -> 3.53%, four 3.45 -> 3.40%; rough metal 0.6 4.84 ->
+4.76%, 3.65 -> 3.61%; FLIP 0.074 -> 0.066, 0.065 -> 0.061.
 
 Turned frames (issue 12). Classic's receivers turn their micro-buffer frames about the normal by
 a random angle per pixel and pass (lib/microbuffer.glsl: mb_frame), which makes their

@@ -139,6 +139,27 @@ def test_fronts_and_presets_on_known_numbers():
     assert T.suggest_presets(rows, {"balanced": 2.0})["balanced"]["setting"] == "slow"
 
 
+def test_final_makes_every_pixel_a_receiver_and_breaks_near_ties_by_time():
+    rows = []
+    table = {  # setting: (ms, error, GI scale, rough scale)
+        "upsampled": (20.0, 0.090, 0.5, None), "rough upsampled": (30.0, 0.091, 1.0, 0.5),
+        "slow": (400.0, 0.100, 1.0, None), "near tie": (100.0, 0.100 * (T.FINAL_TIE - 0.005),
+                                                       1.0, None),
+        "outside the tie": (50.0, 0.100 * (T.FINAL_TIE + 0.01), 1.0, None)}
+    for room in ("a", "b"):
+        for name, (ms, err, scale, rough) in table.items():
+            rows.append({"room": room, "material": "diffuse", "setting": name, "mode": "hybrid",
+                         "ms": ms, "rel_rmse_4x4": err, "scale": scale, "rough_scale": rough})
+    p = T.suggest_presets(rows, {"final": None})["final"]
+    # the two upsampled settings have the least error but are not at GI scale 1; of the rest
+    # "slow" has the least excess, "near tie" is within FINAL_TIE of it and 4x faster
+    assert p["setting"] == "near tie"
+    assert p["worst_excess"] == pytest.approx(0.100 * (T.FINAL_TIE - 0.005) / 0.090)
+    # without the tie the least excess wins, whatever its time
+    rows = [r for r in rows if r["setting"] != "near tie"]
+    assert T.suggest_presets(rows, {"final": None})["final"]["setting"] == "slow"
+
+
 def test_csv_and_plot_outputs(tmp_path):
     pytest.importorskip("matplotlib")
     rows = _records()

@@ -170,15 +170,18 @@ HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "b
 # Pareto front that ``scanlight bench tradeoff`` measures (README, "Speed against accuracy":
 # its suggest_presets picked these three from the full grid on both rooms and five materials -
 # preview the fastest within 2.5x the best error of every case, balanced within 1.5x, final
-# the least; re-run the bench when the renderer changes: final was Classic M 24 until Hybrid's
-# block levels made Hybrid M 24 the least, 1.08x against Classic's 1.28x).
+# the least at GI scale 1 everywhere, near ties broken by time (tradeoff.FINAL_TIE); re-run
+# the bench when the renderer changes: final was Classic M 24 until Hybrid's block levels made
+# Hybrid M 24 the least, 1.08x against Classic's 1.28x, and balanced was M 24 until the block
+# levels over the far field's share put M 20 within its budget, 1.41x, at 0.7x its time on the
+# rough spheres).
 # ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
 # below), so a fresh viewer and a command line without --quality get exactly that preset.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {
     "preview": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 16, "pbgi.render_scale": 0.5,
                 "pbgi.rough_render_scale": 0.5,
                 "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
-    "balanced": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
+    "balanced": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 20, "pbgi.render_scale": 1.0,
                  "pbgi.rough_render_scale": 0.5,
                  "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
     "final": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
@@ -248,7 +251,7 @@ PARAMS: tuple[Param, ...] = (
        "through the G-buffer pyramid. Hybrid: far field shared between neighbouring pixels, "
        "near field per pixel (several times faster). Environment map: one cube map from the "
        "asset centre.", RENDER_MODES, redo="gi"),
-    _i("pbgi.microbuffer", 24, "Micro-buffer resolution M (M x M micro-pixels per receiver).",
+    _i("pbgi.microbuffer", 20, "Micro-buffer resolution M (M x M micro-pixels per receiver).",
        8, 32, "px", redo="gi"),
     _f("pbgi.glossy_below", 0.5, "Specular lobes smoother than this roughness (and every "
        "clearcoat) are gathered from a second micro-buffer warped to the lobe (glossy and "

@@ -162,7 +162,8 @@ def test_a_mirror_sees_a_closed_room(sweep):
     from app.pbgi.gpu_layout import MB_EMPTY, RECEIVER
     from app.pbgi.renderer import RenderParams
     rl, cam = sweep
-    res = rl.render(cam, [glossy.material("metal", 0.0)], RenderParams(mode="classic"))
+    res = rl.render(cam, [glossy.material("metal", 0.0)], RenderParams(mode="classic",
+                                                                      microbuffer=24))
     cells = rl.lobe_buffers.read(res.stats.receivers)[:, :, 1]
     assert res.stats.receivers > 3000 and cells.shape[1] == 12 * 12    # M 24: M / 2 a side
     side = 8                    # one lobe takes 2/3 of each side (shaders/lib/lobe_size.glsl)

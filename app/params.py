@@ -173,7 +173,7 @@ HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "b
 # the least at GI scale 1 everywhere, near ties broken by time (tradeoff.FINAL_TIE); re-run
 # the bench when the renderer changes: final was Classic M 24 until Hybrid's block levels made
 # Hybrid M 24 the least, 1.08x against Classic's 1.28x, and balanced was M 24 until the block
-# levels over the far field's share put M 20 within its budget, 1.41x, at 0.7x its time on the
+# levels over the far field's share put M 20 within its budget, 1.41x, at 0.7-0.85x its time on the
 # rough spheres).
 # ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
 # below), so a fresh viewer and a command line without --quality get exactly that preset.

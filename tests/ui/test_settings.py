@@ -154,6 +154,24 @@ def test_session_round_trip(tmp_path):
     np.testing.assert_allclose(back.camera.view(), s.camera.view())
 
 
+def test_a_session_saved_before_a_preset_changed_opens_as_it_was_saved(tmp_path):
+    """balanced was M 24 until 2026-12-06 (app/params.py: QUALITY_PRESETS) and a session stores
+    every value: it keeps its M 24, and the quality says custom rather than naming a preset
+    whose values it no longer has; choosing the preset again takes its values."""
+    from app.params import QUALITY_PRESETS
+    assert QUALITY_PRESETS["balanced"]["pbgi.microbuffer"] != 24
+    s = _session(tmp_path)
+    s.settings.set("pbgi.quality", "balanced")
+    path = s.save(tmp_path / "old.json")
+    d = json.loads(path.read_text())
+    d["settings"]["pbgi.microbuffer"] = 24                 # what balanced stored before
+    path.write_text(json.dumps(d))
+    back = load_session(path)
+    assert back.settings["pbgi.microbuffer"] == 24 and back.settings["pbgi.quality"] == "custom"
+    back.settings.set("pbgi.quality", "balanced")
+    assert back.settings["pbgi.microbuffer"] == QUALITY_PRESETS["balanced"]["pbgi.microbuffer"]
+
+
 def test_bad_session_files_name_the_file(tmp_path):
     p = tmp_path / "s.json"
     cases = {

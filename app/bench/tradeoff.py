@@ -147,7 +147,7 @@ def settings(grid: str) -> list[Setting]:
         for s in (1.0, 0.5, 0.25):
             out.append(make_setting("hybrid", s, m=m))
     # the scale per scene (pbgi.rough_render_scale): 1/2 where every lobe is rough, else 1;
-    # at each M the presets could take (balanced's M 24, preview's M 16, and between)
+    # at each M a preset has taken (preview's M 16, balanced's M 20, final's M 24)
     for m in (16, 20, 24):
         out.append(make_setting("hybrid", 1.0, rough_scale=0.5, m=m))
     out += [make_setting("hybrid", m=8), make_setting("hybrid", m=16, stop=1.0),

@@ -1,18 +1,22 @@
 """The README's before/after figures of the GI scale per scene (``pbgi.rough_render_scale``):
 docs/rough_scale.png; with ``--cases`` and ``--settings`` the others of "Speed against accuracy"
 (the scale by roughness, ``pbgi.rough_scale_from``: docs/rough_scale_from.png; the ``final``
-preset, Classic M 24 before and Hybrid M 24 after: docs/final_preset.png).
+preset, Classic M 24 before and Hybrid M 24 after: docs/final_preset.png; the ``balanced``
+preset, Hybrid M 24 before and M 20 after: docs/balanced_preset.png).
 
     python tests/pbgi/make_rough_scale_figure.py [--out docs/rough_scale.png]
     python tests/pbgi/make_rough_scale_figure.py --out docs/rough_scale_from.png \
         --cases apartment:gold_r0.35,apartment:clearcoat,demo:gold_r0.45
     python tests/pbgi/make_rough_scale_figure.py --out docs/final_preset.png --settings mode \
         --cases demo:diffuse,demo:rough_metal,apartment:rough_metal
+    python tests/pbgi/make_rough_scale_figure.py --out docs/balanced_preset.png --settings m \
+        --cases demo:diffuse,demo:rough_metal,apartment:rough_metal
 
 Per case (the trade-off bench's rooms and materials, or gold of roughness R as ``gold_rR``;
 256 x 256 close-ups): the path-traced reference (app/bench/tradeoff.py's, cached; Mitsuba 3
 renders it if it is missing), the image before and after (``--settings scale``: Hybrid M 24 at
-GI scale 1 and 1/2; ``mode``: Classic M 24 and Hybrid M 24), and each one's |image - reference|
+GI scale 1 and 1/2; ``mode``: Classic M 24 and Hybrid M 24; ``m``: Hybrid M 24 and M 20 at
+the scale per scene), and each one's |image - reference|
 x 5 over the asset, both 4x4-pooled (the reference's own noise averages out), tone mapped
 alike.
 Prints each image's 4x4-pooled relative RMSE (the bench's evaluate).
@@ -35,7 +39,9 @@ from app.render.tonemap import tonemap_to_srgb8  # noqa: E402
 
 CASES = "demo:diffuse,demo:rough_metal,apartment:rough_metal"
 SETTINGS = {"scale": (T.make_setting("hybrid", 1.0, m=24), T.make_setting("hybrid", 0.5, m=24)),
-            "mode": (T.make_setting("classic", 1.0, m=24), T.make_setting("hybrid", 1.0, m=24))}
+            "mode": (T.make_setting("classic", 1.0, m=24), T.make_setting("hybrid", 1.0, m=24)),
+            "m": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=24),
+                  T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20))}
 GOLD = "gold_r"
 
 

@@ -174,18 +174,21 @@ HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "b
 # the bench when the renderer changes: final was Classic M 24 until Hybrid's block levels made
 # Hybrid M 24 the least, 1.08x against Classic's 1.28x, and balanced was M 24 until the block
 # levels over the far field's share put M 20 within its budget, 1.41x, at 0.7-0.85x its time on the
-# rough spheres).
+# rough spheres). The viewer's passes where every lobe is rough (pbgi.rough_idle_passes) are
+# not in the grid (one pass each): 2 in preview and balanced bring the orbit of the demo
+# close-up within issue 19's 3 s on the 2-core CPU (balanced 2.2-2.6 s against 3.9-4.9 s with
+# 4) at a small cost in pass noise (README, "Fewer idle passes where the light is rough").
 # ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
 # below), so a fresh viewer and a command line without --quality get exactly that preset.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {
     "preview": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 16, "pbgi.render_scale": 0.5,
-                "pbgi.rough_render_scale": 0.5,
+                "pbgi.rough_render_scale": 0.5, "pbgi.rough_idle_passes": 2,
                 "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
     "balanced": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 20, "pbgi.render_scale": 1.0,
-                 "pbgi.rough_render_scale": 0.5,
+                 "pbgi.rough_render_scale": 0.5, "pbgi.rough_idle_passes": 2,
                  "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
     "final": {"pbgi.mode": "hybrid", "pbgi.microbuffer": 24, "pbgi.render_scale": 1.0,
-              "pbgi.rough_render_scale": 1.0,
+              "pbgi.rough_render_scale": 1.0, "pbgi.rough_idle_passes": 4,
               "pbgi.parallax_tolerance": 1.0, "pbgi.stop_factor": 4.0},
 }
 DEFAULT_QUALITY = "balanced"
@@ -302,6 +305,12 @@ PARAMS: tuple[Param, ...] = (
     _i("pbgi.idle_passes", 4, "Passes the viewer averages while the view stays still, after "
        "the first full-resolution image (the same jitter as `render --passes`); 1 = none.",
        1, 64, "", label="idle passes", redo="none"),
+    _i("pbgi.rough_idle_passes", 2, "Idle passes when every material is rough (the test of "
+       "pbgi.rough_render_scale: pbgi.rough_scale_from): a rough lobe's light changes little "
+       "from pass to pass (the demo close-up at balanced: 2.7% per pixel from the converged "
+       "mean after 2 passes, 2.1% after 4; a gold at roughness 0.25 11% and 7.7%), so fewer "
+       "passes converge it; the lower of it and idle_passes applies (README, 'Fewer idle "
+       "passes where the light is rough').", 1, 64, "", label="rough idle passes", redo="none"),
     _f("pbgi.render_scale", 1.0, "GI resolution of a final image relative to its size (the "
        "viewer's layer, refined in tiles when the view is idle, and `render`), brought back to "
        "full resolution by joint bilateral upsampling guided by the full-resolution G-buffer.",
@@ -314,7 +323,8 @@ PARAMS: tuple[Param, ...] = (
        label="rough GI scale", redo="gi"),
     _f("pbgi.rough_scale_from", 0.35, "Roughness from which a specular lobe counts as rough for "
        "pbgi.rough_render_scale (an anisotropic lobe by its narrow axis; a clearcoat does not "
-       "count: its lobe is weak). Measured per roughness against the path tracer (README, "
+       "count: its lobe is weak), and for pbgi.rough_idle_passes. Measured per roughness "
+       "against the path tracer (README, "
        "'Speed against accuracy'); 1 = only fully rough materials.", 0.0, 1.0, "",
        label="rough GI scale from", redo="gi", ui=False),
     _f("pbgi.preview_scale", 0.25, "GI resolution while the camera or a slider moves; upsampled "

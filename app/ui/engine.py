@@ -520,6 +520,8 @@ class ViewerEngine:
             return why
         if self.layer_scale(self.session.settings) != self._layer_scale:
             return "the GI resolution changes (pbgi.rough_render_scale)"
+        if self.layer_passes(self.session.settings) != self.gi.passes:
+            return "the number of idle passes changes (pbgi.rough_idle_passes)"
         edited = [i for i, (a, b) in enumerate(zip(old, new)) if changed(a, b)]
         if edited and not self.gi.recolour(edited, lambda rec, i: recombine(rec, new[i])):
             return "the picture holds no parts, or a pixel mixes an edited material with another"
@@ -626,6 +628,24 @@ class ViewerEngine:
             return float(values["pbgi.render_scale"])
         return gi_scale_of(values, materials)
 
+    def layer_passes(self, values) -> int:
+        """Idle passes for these settings and the session's materials: the lower of
+        ``pbgi.idle_passes`` and ``pbgi.rough_idle_passes`` while every material is rough in the
+        sense of ``layer_scale`` (app/pbgi/upsample.py: rough_for_scale), ``pbgi.idle_passes``
+        otherwise. Passes average pass-to-pass noise, and a rough lobe has little of it."""
+        from app.pbgi.upsample import rough_for_scale
+        idle = int(values["pbgi.idle_passes"])
+        r = self.relighter
+        if r is None or r.mesh is None:
+            return idle
+        try:
+            materials = r.materials_for(self.session.materials)
+        except ScanlightError:
+            return idle
+        if all(rough_for_scale(m, values["pbgi.rough_scale_from"]) for m in materials):
+            return min(idle, int(values["pbgi.rough_idle_passes"]))
+        return idle
+
     def _restart_gi(self, cam: Camera) -> None:
         self._gi_dirty = False
         self.gi_failed = False
@@ -636,7 +656,7 @@ class ViewerEngine:
         rect = screen_rect(layer, *self.mesh.bounds())
         s = self.session.settings
         self.gi.restart(layer, rect, s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
-                        s["pbgi.idle_passes"])
+                        self.layer_passes(s))
         self._gathered_materials = (None if self.session.materials is None
                                     else list(self.session.materials))
         self._asset_dirty = True
@@ -646,7 +666,7 @@ class ViewerEngine:
             layer_b = scaled_camera(cam, self.layer_scale(b_settings(s)))
             self.gi_b.restart(layer_b, screen_rect(layer_b, *self.mesh.bounds()),
                               s["pbgi.preview_scale"], s["pbgi.frame_budget_ms"],
-                              s["pbgi.idle_passes"])
+                              self.layer_passes(b_settings(s)))
             self._set_side_labels()
 
     def _compare_metrics(self) -> None:

@@ -216,6 +216,36 @@ def test_the_layer_scale_follows_the_materials(ctx, renders):
     e.release()
 
 
+def test_the_idle_passes_follow_the_materials(ctx, renders):
+    """A rough scene refines pbgi.rough_idle_passes passes (2 at the default preset), a narrow
+    lobe pbgi.idle_passes (4): the edit that brings it in gathers again and says why; the lower
+    of the two applies, and the final preset keeps 4 for rough light too."""
+    from app.params import QUALITY_PRESETS
+    assert QUALITY_PRESETS["balanced"]["pbgi.rough_idle_passes"] == 2
+    e = make_engine(ctx, (48, 36), session=small_session(**{"pbgi.differential": False}))
+    e.frame()
+    assert e.gi.passes == 2
+    e.finish_refinement()
+    assert e.gi.pass_index == 1 and not e.gi.refining
+    e.session.set_material(0, {"roughness": 0.3})
+    e.frame()
+    assert e.gi.passes == 4 and e.material_edit != "recombined"
+    e.session.set_material(0, {"roughness": 0.6})
+    e.frame()
+    assert e.gi.passes == 2
+    e.finish_refinement()
+    e.session.set_material(0, {"base_color": (0.2, 0.4, 0.6)})      # still rough: recoloured
+    e.frame()
+    assert e.material_edit == "recombined" and e.gi.passes == 2
+    e.session.settings.set("pbgi.quality", "final")
+    e.frame()
+    assert e.gi.passes == 4
+    e.session.settings.set("pbgi.idle_passes", 1)
+    e.session.settings.set("pbgi.microbuffer", 9)                   # a new gather
+    e.frame()
+    assert e.gi.passes == 1
+
+
 def test_each_change_key_has_its_handler(ctx, renders):
     """Table parameters reach the handler of their Param.redo (a new parameter needs no engine
     edit); document keys have their own handlers, connected in the order of the work; keys

@@ -26,7 +26,9 @@ under the cursor.
 
 ``redo`` says what a change invalidates, for the engine's change handlers: "gi" re-gathers the
 asset, "display" only re-tone-maps / recomposites, "room" redraws the point splats, "job" only
-affects the next background job, "none" nothing already computed.
+affects the next background job, "passes" re-gathers only when the viewer's number of idle passes
+for the scene changes (their samples are centred for their count, so a new count starts them
+over), "none" nothing already computed.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from app.errors import ScanlightError
 from app.render.tonemap import DEFAULT as DEFAULT_TONEMAP, NAMES as TONEMAPPERS
 
 KINDS = ("float", "int", "bool", "choice")
-REDO = ("gi", "display", "room", "job", "none")
+REDO = ("gi", "display", "room", "job", "passes", "none")
 
 
 @dataclass(frozen=True)
@@ -304,13 +306,14 @@ PARAMS: tuple[Param, ...] = (
        1, 64, "", redo="none", ui=False),
     _i("pbgi.idle_passes", 4, "Passes the viewer averages while the view stays still, after "
        "the first full-resolution image (the same jitter as `render --passes`); 1 = none.",
-       1, 64, "", label="idle passes", redo="none"),
+       1, 64, "", label="idle passes", redo="passes"),
     _i("pbgi.rough_idle_passes", 2, "Idle passes when every material is rough (the test of "
        "pbgi.rough_render_scale: pbgi.rough_scale_from): a rough lobe's light changes little "
        "from pass to pass (the demo close-up at balanced: 2.7% per pixel from the converged "
        "mean after 2 passes, 2.1% after 4; a gold at roughness 0.25 11% and 7.7%), so fewer "
        "passes converge it; the lower of it and idle_passes applies (README, 'Fewer idle "
-       "passes where the light is rough').", 1, 64, "", label="rough idle passes", redo="none"),
+       "passes where the light is rough').", 1, 64, "", label="rough idle passes",
+       redo="passes"),
     _f("pbgi.render_scale", 1.0, "GI resolution of a final image relative to its size (the "
        "viewer's layer, refined in tiles when the view is idle, and `render`), brought back to "
        "full resolution by joint bilateral upsampling guided by the full-resolution G-buffer.",

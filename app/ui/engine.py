@@ -25,7 +25,8 @@ connected in ``_connect_handlers`` (``app.settings.ChangeHandlers``), in this or
                                    which HDRI lights A and B (Relighter.set_hdri; the panorama
                                    replaces the room behind that side); re-gather
     table parameters by their ``Param.redo`` (app/params.py): "room" redraws the splats, "gi"
-    re-gathers, "display" re-composites; "job" and "none" redo nothing here.
+    re-gathers, "display" re-composites, "passes" re-gathers when the scene's count of idle
+    passes changes; "job" and "none" redo nothing here.
 
 The A/B compare (app/ui/compare.py): a second GI layer ``gi_b`` gathered by a second renderer
 with B's settings, refined in turns with A under the same frame budget, composited right of the
@@ -334,6 +335,7 @@ class ViewerEngine:
         c.connect_redo("room", self._redo_room)
         c.connect_redo("gi", self._redo_gi)
         c.connect_redo("display", self._redo_composite)
+        c.connect_redo("passes", self._on_idle_passes)
 
     def apply_changes(self) -> frozenset:
         """Hand the session's change set to the handlers; returns it."""
@@ -528,6 +530,17 @@ class ViewerEngine:
         self._gathered_materials = list(self.session.materials)
         self._asset_dirty = self._recoloured = True
         return None
+
+    def _on_idle_passes(self, keys) -> None:
+        """A new count of idle passes (``layer_passes``) starts the passes over: each pass's
+        sample is placed for the count (app/pbgi/gbuffer.py: pass_jitter centres them), so
+        passes cannot be added to or cut from a mean already begun. An edit that leaves the
+        scene's count as it is (4 -> 8 idle passes of a rough scene that takes 2) redoes
+        nothing."""
+        s = self.session.settings
+        if self.layer_passes(s) != self.gi.passes or (
+                self._b_active and self.layer_passes(b_settings(s)) != self.gi_b.passes):
+            self._redo_gi(keys)
 
     def _redo_composite(self, keys) -> None:
         self._composite_dirty = True

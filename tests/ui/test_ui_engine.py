@@ -240,10 +240,14 @@ def test_the_idle_passes_follow_the_materials(ctx, renders):
     e.session.settings.set("pbgi.quality", "final")
     e.frame()
     assert e.gi.passes == 4
-    e.session.settings.set("pbgi.idle_passes", 1)
-    e.session.settings.set("pbgi.microbuffer", 9)                   # a new gather
+    e.finish_refinement()
+    n = len(renders)
+    e.session.settings.set("pbgi.idle_passes", 8)       # final's rough passes stay 4: nothing
     e.frame()
-    assert e.gi.passes == 1
+    assert e.gi.passes == 4 and not e.gi.refining and len(renders) == n
+    e.session.settings.set("pbgi.idle_passes", 1)       # the scene's count changes: gathered
+    e.frame()                                           # again, one pass
+    assert e.gi.passes == 1 and len(renders) > n
 
 
 def test_each_change_key_has_its_handler(ctx, renders):
@@ -255,7 +259,8 @@ def test_each_change_key_has_its_handler(ctx, renders):
     relighter = Relighter(ctx=ctx)
     e = make_engine(ctx, relighter=relighter)
     assert e.relighter is relighter
-    redo = {"gi": e._redo_gi, "room": e._redo_room, "display": e._redo_composite}
+    redo = {"gi": e._redo_gi, "room": e._redo_room, "display": e._redo_composite,
+            "passes": e._on_idle_passes}
     for p in PARAMS:
         handlers = e.changes.handlers_for(p.key)
         assert (redo[p.redo] in handlers) if p.redo in redo else not handlers, p.key

@@ -177,9 +177,9 @@ HDR_METHODS = ("pmatch-rgb", "pmatch-lum", "landis", "banterle", "landis-pc", "b
 # Hybrid M 24 the least, 1.08x against Classic's 1.28x, and balanced was M 24 until the block
 # levels over the far field's share put M 20 within its budget, 1.41x, at 0.7-0.85x its time on the
 # rough spheres). The viewer's passes where every lobe is rough (pbgi.rough_idle_passes) are
-# not in the grid (one pass each): 2 in preview and balanced bring the orbit of the demo
-# close-up within issue 19's 3 s on the 2-core CPU (balanced 2.2-2.6 s against 3.9-4.9 s with
-# 4) at a small cost in pass noise (README, "Fewer idle passes where the light is rough").
+# not in the grid (one pass each): 2 in preview and balanced, where the passes' noise was
+# measured small, bring the orbit of the demo close-up within issue 19's 3 s on the 2-core CPU
+# (README, "Fewer idle passes where the light is rough").
 # ``pbgi.quality`` selects one; DEFAULT_QUALITY's values are the table's defaults (checked
 # below), so a fresh viewer and a command line without --quality get exactly that preset.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {

@@ -191,14 +191,16 @@ def note(metrics: dict, sweep) -> str:
 # -- scenes -----------------------------------------------------------------------------------
 
 def settings() -> list:
-    """The presets (app/params.py QUALITY_PRESETS, render scale taken out) and the two modes."""
-    from app.params import QUALITY_PRESETS
+    """The presets (app/params.py QUALITY_PRESETS: their render keys, and their render scales
+    as the Setting's) and the two modes. A preset's viewer-only keys (the idle passes) are not a
+    render's."""
+    from app.params import QUALITY_PRESETS, RENDER_KEYS
     out = []
     for name, values in QUALITY_PRESETS.items():
-        p = dict(values)
-        scale = float(p.pop("pbgi.render_scale"))
-        rough = float(p.pop("pbgi.rough_render_scale"))     # gi_scale takes the lower
-        out.append(T.Setting(name, tuple(p.items()), scale, rough))
+        p = tuple((k, v) for k, v in values.items() if k in RENDER_KEYS)
+        scale = float(values["pbgi.render_scale"])
+        rough = float(values["pbgi.rough_render_scale"])    # gi_scale takes the lower
+        out.append(T.Setting(name, p, scale, rough))
     return out + [T.make_setting(mode, m=MODE_M) for mode in ("classic", "hybrid")]
 
 

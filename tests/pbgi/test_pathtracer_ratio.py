@@ -189,6 +189,18 @@ def test_the_summary_has_a_ratio_or_a_bound_per_case_and_setting():
     assert lines[3] == "| demo | sphere | whole | diffuse | - | - |"
 
 
+def test_every_setting_is_a_render_s():
+    """Each setting the bench renders makes valid render parameters (Mitsuba not needed): a
+    preset key only the viewer reads (pbgi.rough_idle_passes) once made every preset fail."""
+    from app.params import QUALITY_PRESETS
+    from app.pbgi.renderer import RenderParams
+    names = []
+    for s in P.settings():
+        RenderParams.from_dict(s.params).validated()
+        names.append(s.name)
+    assert set(QUALITY_PRESETS) <= set(names)
+
+
 @pytest.mark.parametrize("flags", [["--sweep", "4"], ["--sweep", "4,x"], ["--ref-spp", "100"],
                                    ["--ref-spp", "0"], ["--viewport", "8"], ["--viewport", "0"],
                                    ["--frames", "0"],

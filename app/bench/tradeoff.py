@@ -265,8 +265,9 @@ def evaluate(image: np.ndarray, ref: np.ndarray) -> dict:
             "flip": float("nan") if flip is None else flip}
 
 
-def render_setting(rl, camera, mat, setting: Setting):
-    """One frame of ``setting``: the image (h, w, 4) and the render's completion flag."""
+def render_setting(rl, camera, mat, setting: Setting, passes: int = 1):
+    """One frame of ``setting`` (the mean of ``passes``, as `render --passes`): the image
+    (h, w, 4) and the render's completion flag."""
     from app.params import BY_KEY
     from app.pbgi.renderer import RenderParams
     from app.pbgi.upsample import gi_scale, render_upsampled
@@ -276,7 +277,7 @@ def render_setting(rl, camera, mat, setting: Setting):
     scale = (setting.scale if setting.rough_scale is None else
              gi_scale(setting.scale, setting.rough_scale, [mat], rough_from))
     rl.forget_microbuffers()
-    res = render_upsampled(rl, camera, [mat], params, 1, scale)
+    res = render_upsampled(rl, camera, [mat], params, passes, scale)
     return res.image, bool(res.stats.completed)
 
 

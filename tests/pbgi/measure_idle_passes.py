@@ -7,12 +7,13 @@ against the renderer's own converged mean.
         [--json out.json]
 
 Per room and material of the trade-off bench (256 x 256 close-ups, app/bench/tradeoff.py) and
-per quality preset at its GI scale for that material (app/pbgi/upsample.py: gi_scale): the mean
-of N passes as the viewer makes it (``render_upsampled`` with N passes: the same pass jitter and
-lobe rotations), its per-pixel and 4x4-pooled relative RMSE and FLIP against the cached Mitsuba
-reference (rendered if missing), and - what the reference's own noise (8.7% per pixel on the
-demo) hides - its per-pixel relative RMSE and FLIP against the mean of 16 passes, the picture
-the passes converge to. Prints a markdown table; ``--json`` keeps every number.
+per quality preset at its GI scale for that material (app/pbgi/upsample.py: gi_scale; the preset
+as `bench pathtracer-ratio` renders it): the mean of N passes as the viewer makes it
+(``tradeoff.render_setting`` with N passes: the same pass jitter and lobe rotations), its
+per-pixel and 4x4-pooled relative RMSE and FLIP against the cached Mitsuba reference (rendered
+if missing), and - what the reference's own noise (8.7% per pixel on the demo) hides - its
+per-pixel relative RMSE and FLIP against the mean of 16 passes, the picture the passes converge
+to. Prints a markdown table; ``--json`` keeps every number.
 """
 
 from __future__ import annotations
@@ -26,22 +27,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from app.bench import image_metrics as im  # noqa: E402
 from app.bench import tradeoff as T  # noqa: E402
-from app.params import BY_KEY, QUALITY_PRESETS  # noqa: E402
-from app.pbgi.renderer import Relighter, RenderParams  # noqa: E402
-from app.pbgi.upsample import gi_scale, render_upsampled  # noqa: E402
+from app.bench.pathtracer_ratio import settings as bench_settings  # noqa: E402
+from app.pbgi.renderer import Relighter  # noqa: E402
 
 CONVERGED = 16          # passes of the mean taken as converged
-
-
-def preset_render(preset: str, mat):
-    """(RenderParams, GI scale) of a quality preset for one material."""
-    values = QUALITY_PRESETS[preset]
-    fields = set(RenderParams.__dataclass_fields__)
-    params = RenderParams.from_dict({k: v for k, v in values.items()
-                                     if k.removeprefix("pbgi.") in fields})
-    scale = gi_scale(values["pbgi.render_scale"], values["pbgi.rough_render_scale"], [mat],
-                     BY_KEY["pbgi.rough_scale_from"].default)
-    return params, scale
 
 
 def measure(room: str, kinds, presets, passes) -> list[dict]:
@@ -49,20 +38,20 @@ def measure(room: str, kinds, presets, passes) -> list[dict]:
     rl = Relighter()
     rl.set_cloud(cloud)
     rl.set_asset(mesh)
-    spp = 2048 if room == "demo" else 512
+    by_name = {s.name: s for s in bench_settings()}     # the presets as the benches render them
     rows = []
     for kind in kinds:
         mat = T.material(kind)
-        ref = T.reference(room, kind, rl, cloud, mesh, cam, spp, T.reference_dir())
+        ref = T.reference(room, kind, rl, cloud, mesh, cam, T.SPP[room], T.reference_dir())
         for preset in presets:
-            params, scale = preset_render(preset, mat)
-            conv = render_upsampled(rl, cam, [mat], params, CONVERGED, scale).image
+            setting = by_name[preset]
+            conv = T.render_setting(rl, cam, mat, setting, CONVERGED)[0]
             mask = im.erode(conv[..., 3] > 0.5, T.MASK_ERODE)
             for n in passes:
-                img = render_upsampled(rl, cam, [mat], params, n, scale).image
+                img = T.render_setting(rl, cam, mat, setting, n)[0]
                 flip = im.flip(img, conv, mask)
-                row = {"room": room, "material": kind, "preset": preset, "scale": scale,
-                       "passes": n, **T.evaluate(img, ref.image),
+                row = {"room": room, "material": kind, "preset": preset, "passes": n,
+                       **T.evaluate(img, ref.image),
                        "to_converged": im.relative_rmse(img, conv, mask, 1),
                        "flip_to_converged": float("nan") if flip is None else flip}
                 rows.append(row)

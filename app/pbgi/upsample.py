@@ -89,9 +89,15 @@ def gi_scale(render_scale: float, rough_render_scale: float, materials,
     and ``render``'s upsampling take one, and an asset that mixes a near-mirror with rough
     materials keeps ``render_scale`` everywhere."""
     scale = float(render_scale)
-    if all(rough_for_scale(m, rough_from) for m in materials):
+    if rough_scene(materials, rough_from):
         return min(scale, float(rough_render_scale))
     return scale
+
+
+def rough_scene(materials, rough_from: float) -> bool:
+    """Is every material rough (``rough_for_scale``)? Such a scene takes the rough GI scale here
+    and the viewer's rough idle passes (app/ui/engine.py: layer_passes)."""
+    return all(rough_for_scale(m, rough_from) for m in materials)
 
 
 def rough_for_scale(material, rough_from: float) -> bool:

@@ -632,30 +632,33 @@ class ViewerEngine:
         (app/pbgi/upsample.py: gi_scale - ``pbgi.rough_render_scale`` while every material is
         at least ``pbgi.rough_scale_from`` rough, ``pbgi.render_scale`` otherwise)."""
         from app.pbgi.upsample import gi_scale_of
-        r = self.relighter
-        if r is None or r.mesh is None:     # nothing to gather yet
-            return float(values["pbgi.render_scale"])
-        try:
-            materials = r.materials_for(self.session.materials)
-        except ScanlightError:              # materials the asset cannot take: the plain scale
+        materials = self._scene_materials()
+        if materials is None:
             return float(values["pbgi.render_scale"])
         return gi_scale_of(values, materials)
+
+    def _scene_materials(self):
+        """The renderer's materials for the session's, or None: nothing to gather yet, or
+        materials the asset cannot take (then the plain scale and passes apply)."""
+        r = self.relighter
+        if r is None or r.mesh is None:
+            return None
+        try:
+            return r.materials_for(self.session.materials)
+        except ScanlightError:
+            return None
 
     def layer_passes(self, values) -> int:
         """Idle passes for these settings and the session's materials: the lower of
         ``pbgi.idle_passes`` and ``pbgi.rough_idle_passes`` while every material is rough in the
-        sense of ``layer_scale`` (app/pbgi/upsample.py: rough_for_scale), ``pbgi.idle_passes``
+        sense of ``layer_scale`` (app/pbgi/upsample.py: rough_scene), ``pbgi.idle_passes``
         otherwise. Passes average pass-to-pass noise, and a rough lobe has little of it."""
-        from app.pbgi.upsample import rough_for_scale
+        from app.pbgi.upsample import rough_scene
         idle = int(values["pbgi.idle_passes"])
-        r = self.relighter
-        if r is None or r.mesh is None:
+        materials = self._scene_materials()
+        if materials is None:
             return idle
-        try:
-            materials = r.materials_for(self.session.materials)
-        except ScanlightError:
-            return idle
-        if all(rough_for_scale(m, values["pbgi.rough_scale_from"]) for m in materials):
+        if rough_scene(materials, values["pbgi.rough_scale_from"]):
             return min(idle, int(values["pbgi.rough_idle_passes"]))
         return idle
 

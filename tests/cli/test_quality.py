@@ -58,6 +58,9 @@ def test_a_session_keeps_its_custom_values():
     assert again["pbgi.microbuffer"] == 8 and again["pbgi.quality"] == CUSTOM_QUALITY
 
 
+VIEWER_ONLY = "pbgi.rough_idle_passes"      # the one preset key `render` has no use for
+
+
 @pytest.mark.parametrize("name", sorted(QUALITY_PRESETS))
 def test_render_quality_flag_gives_the_presets_values(name):
     values = param_values(build_parser().parse_args(RENDER + ["--quality", name]), "render")
@@ -65,9 +68,6 @@ def test_render_quality_flag_gives_the_presets_values(name):
         if k != VIEWER_ONLY:
             assert values[k] == v, k
     assert VIEWER_ONLY not in values
-
-
-VIEWER_ONLY = "pbgi.rough_idle_passes"      # the one preset key `render` has no use for
 
 
 def test_an_explicit_flag_wins_over_the_preset():

@@ -2,7 +2,8 @@
 docs/rough_scale.png; with ``--cases`` and ``--settings`` the others of "Speed against accuracy"
 (the scale by roughness, ``pbgi.rough_scale_from``: docs/rough_scale_from.png; the ``final``
 preset, Classic M 24 before and Hybrid M 24 after: docs/final_preset.png; the ``balanced``
-preset, Hybrid M 24 before and M 20 after: docs/balanced_preset.png).
+preset, Hybrid M 24 before and M 20 after: docs/balanced_preset.png; a rough scene's idle
+passes at ``balanced``, 4 before and 2 after: docs/rough_idle_passes.png).
 
     python tests/pbgi/make_rough_scale_figure.py [--out docs/rough_scale.png]
     python tests/pbgi/make_rough_scale_figure.py --out docs/rough_scale_from.png \
@@ -11,12 +12,15 @@ preset, Hybrid M 24 before and M 20 after: docs/balanced_preset.png).
         --cases demo:diffuse,demo:rough_metal,apartment:rough_metal
     python tests/pbgi/make_rough_scale_figure.py --out docs/balanced_preset.png --settings m \
         --cases demo:diffuse,demo:rough_metal,apartment:rough_metal
+    python tests/pbgi/make_rough_scale_figure.py --out docs/rough_idle_passes.png \
+        --settings passes --cases demo:diffuse,demo:rough_metal,apartment:clearcoat
 
 Per case (the trade-off bench's rooms and materials, or gold of roughness R as ``gold_rR``;
 256 x 256 close-ups): the path-traced reference (app/bench/tradeoff.py's, cached; Mitsuba 3
 renders it if it is missing), the image before and after (``--settings scale``: Hybrid M 24 at
 GI scale 1 and 1/2; ``mode``: Classic M 24 and Hybrid M 24; ``m``: Hybrid M 24 and M 20 at
-the scale per scene), and each one's |image - reference|
+the scale per scene; ``passes``: ``balanced`` as the viewer converges a rough scene, the mean
+of 4 passes before pbgi.rough_idle_passes and of 2 after), and each one's |image - reference|
 x 5 over the asset, both 4x4-pooled (the reference's own noise averages out), tone mapped
 alike.
 Prints each image's 4x4-pooled relative RMSE (the bench's evaluate).
@@ -41,7 +45,11 @@ CASES = "demo:diffuse,demo:rough_metal,apartment:rough_metal"
 SETTINGS = {"scale": (T.make_setting("hybrid", 1.0, m=24), T.make_setting("hybrid", 0.5, m=24)),
             "mode": (T.make_setting("classic", 1.0, m=24), T.make_setting("hybrid", 1.0, m=24)),
             "m": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=24),
-                  T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20))}
+                  T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20)),
+            "passes": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20),) * 2}
+# passes averaged for each image of a pair (1 each where not named): ``passes`` is balanced
+# with the viewer's idle passes of a rough scene before (4) and after (2) pbgi.rough_idle_passes
+PASSES = {"passes": (4, 2)}
 GOLD = "gold_r"
 
 
@@ -77,18 +85,19 @@ def main() -> int:
         rl.set_asset(mesh)
         ref = T.reference(room, kind, rl, cloud, mesh, cam, T.SPP[room], T.reference_dir(),
                           mat=mat)
-        images = [T.render_setting(rl, cam, mat, s)[0] for s in settings]
+        passes = PASSES.get(args.settings, (1, 1))
+        images = [T.render_setting(rl, cam, mat, s, n)[0] for s, n in zip(settings, passes)]
         rl.release()
         ev = -float(np.log2(max(np.percentile(ref.image[..., :3], 99), 1e-6)))
         on = images[0][..., 3] > 0.5                      # the asset's pixels
         mean = float(ref.image[..., :3][on].mean())
         tiles = [tonemap_to_srgb8(im[..., :3], ev) for im in [ref.image] + images]
-        for s, im in zip(settings, images):
+        for s, n, im in zip(settings, passes, images):
             # over the asset, 4x4-pooled as the error is (the reference's own noise averages out)
             diff = np.abs(_pool4(im[..., :3]) - _pool4(ref.image[..., :3])) * 5.0 * on[..., None]
             tiles.append(tonemap_to_srgb8(diff, -float(np.log2(max(mean, 1e-6)))))
             err = T.evaluate(im, ref.image)
-            print(f"{room} {kind} {s.name}: {100 * err['rel_rmse_4x4']:.2f}% 4x4, "
+            print(f"{room} {kind} {s.name}, {n} pass(es): {100 * err['rel_rmse_4x4']:.2f}% 4x4, "
                   f"{100 * err['rel_rmse']:.2f}% per pixel")
         rows.append(np.concatenate(tiles, axis=1))
     write_png(args.out, np.concatenate(rows, axis=0))

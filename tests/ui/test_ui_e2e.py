@@ -12,7 +12,9 @@ switch the cloud view LDR / difference / HDR, switch every PBGI mode (the BRDF s
 must not move), drag roughness and metallic, orbit (and try to go under the floor), save the
 session through the in-window file dialog, take a screenshot with F12, close, reopen the saved
 session. Then: a 50 ms click during refinement registers; a killed viewer's session is offered
-back at the next start; a failed expansion shows its error and the viewer stays up.
+back at the next start; a failed expansion shows its error and the viewer stays up; the
+"rough idle passes" slider and the roughness, typed in, set how many passes the refinement
+averages.
 """
 
 from __future__ import annotations
@@ -339,6 +341,41 @@ def test_a_quick_click_during_refinement_registers(tmp_path):
     med, p95 = float(np.median(intervals)), float(np.percentile(intervals, 95))
     assert med < 2 * 80 and p95 < 4 * 80, (med, p95)
     assert any(w and "refining" in w for w in words), words
+
+
+def test_the_idle_passes_follow_the_slider_and_the_materials(tmp_path):
+    """The viewer averages ``pbgi.rough_idle_passes`` passes while every material is rough and
+    ``pbgi.idle_passes`` once a lobe is narrower (app/ui/engine.py: layer_passes). Typed into the
+    PBGI panel's "rough idle passes" slider and the BRDF panel's roughness, each change reaches
+    the refinement, whose status line then counts that many passes."""
+    from tests.support.e2e import ViewerProcess
+    session = _session(tmp_path, "passes", **{"pbgi.render_scale": 0.25})
+    v = ViewerProcess(tmp_path / "run", tmp_path / "cfg", args=["--session", str(session)],
+                      size=(W, H))
+    seen = {}
+    try:
+        v.click("Scene")                                  # collapse: the PBGI panel in view
+        s = v.wait(_converged, 240, "the first convergence")
+        seen["start"] = (s["settings"]["pbgi.idle_passes"],
+                         s["settings"]["pbgi.rough_idle_passes"], s["material"]["roughness"],
+                         s["gi"]["passes"])
+        _type_into(v, "rough idle passes##pbgi.rough_idle_passes", "3")
+        s = v.wait(lambda s: s["settings"]["pbgi.rough_idle_passes"] == 3, 20, "the slider")
+        s = v.wait(lambda s: s["gi"]["passes"] == 3 and s["gi"]["refining"]
+                   and "of 3" in (s["gi"]["words"] or ""), 120, "a refinement of 3 passes")
+        seen["slider"] = (s["gi"]["passes"], s["gi"]["words"])
+        v.wait(_converged, 240, "convergence with 3 passes")
+        _type_into(v, "roughness", "0.1")                 # a narrow lobe: idle_passes (4)
+        s = v.wait(lambda s: abs(s["material"]["roughness"] - 0.1) < 1e-6, 20, "roughness")
+        s = v.wait(lambda s: s["gi"]["passes"] == 4, 120, "the narrow lobe's passes")
+        seen["glossy"] = s["gi"]["passes"]
+    finally:
+        v.stop()
+    # the default preset's counts; the demo sphere's default material (roughness 0.5) is rough
+    assert seen["start"] == (4, 2, pytest.approx(0.5), 2), seen
+    passes, words = seen["slider"]
+    assert passes == 3 and "of 3" in words, seen
+    assert seen["glossy"] == 4, seen
 
 
 def test_a_killed_viewer_offers_its_session_back(tmp_path):

@@ -21,7 +21,7 @@ WRAPPED = ("button", "small_button", "checkbox", "radio_button", "slider_float",
            "selectable", "collapsing_header", "input_text", "drag_float", "drag_float3",
            "color_edit3", "progress_bar", "begin_combo")
 state = {"rects": {}, "frame": 0, "installed": False, "last_write": 0.0, "request": None,
-         "done": [], "intervals": []}
+         "done": [], "intervals": [], "pass_words": []}
 
 
 def _wrap(name):
@@ -68,7 +68,10 @@ def _snapshot(viewer):
                 "floor_y": getattr(nav, "floor_y", None), "free": getattr(nav, "free", None)},
         "gi": {"refining": e.gi.refining, "progress": e.gi.progress,
                "mode": gi and gi.mode, "words": _words(e),
-               "passes": getattr(e.gi, "passes", None)},
+               "passes": getattr(e.gi, "passes", None),
+               # every distinct "... (pass k of N) ..." the refinement said, frame by frame: a
+               # pass can be over between two writes of this file
+               "pass_words": state["pass_words"][-50:]},
         "job": None if task is None else {"running": task.running,
                                          "fraction": task.snapshot()[1],
                                          "stage": task.snapshot()[2]},
@@ -106,6 +109,12 @@ def on_frame(viewer, frame):
     args = dict(a.split("=", 1) for a in viewer.script_args)
     out = Path(args["out"])
     state["frame"] = frame
+    words = _words(viewer.engine)
+    if words and "(pass " in words:
+        key = words.split(")")[0] + ")"             # "refining 40% (pass 2 of 3)"
+        key = key[key.index("(pass "):]
+        if not state["pass_words"] or state["pass_words"][-1] != key:
+            state["pass_words"].append(key)
     if viewer.frame_intervals:
         state["intervals"].append(viewer.frame_intervals[-1])
         del state["intervals"][:-2000]

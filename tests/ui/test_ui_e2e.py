@@ -358,23 +358,24 @@ def test_the_idle_passes_follow_the_slider_and_the_materials(tmp_path):
         s = v.wait(_converged, 240, "the first convergence")
         seen["start"] = (s["settings"]["pbgi.idle_passes"],
                          s["settings"]["pbgi.rough_idle_passes"], s["material"]["roughness"],
-                         s["gi"]["passes"])
+                         s["gi"]["passes"], s["gi"]["pass_words"][-1:])
         _type_into(v, "rough idle passes##pbgi.rough_idle_passes", "3")
         s = v.wait(lambda s: s["settings"]["pbgi.rough_idle_passes"] == 3, 20, "the slider")
-        s = v.wait(lambda s: s["gi"]["passes"] == 3 and s["gi"]["refining"]
-                   and "of 3" in (s["gi"]["words"] or ""), 120, "a refinement of 3 passes")
-        seen["slider"] = (s["gi"]["passes"], s["gi"]["words"])
+        s = v.wait(lambda s: s["gi"]["passes"] == 3
+                   and "(pass 3 of 3)" in s["gi"]["pass_words"], 120, "a refinement of 3 passes")
+        seen["slider"] = (s["gi"]["passes"], s["gi"]["pass_words"])
         v.wait(_converged, 240, "convergence with 3 passes")
         _type_into(v, "roughness", "0.1")                 # a narrow lobe: idle_passes (4)
         s = v.wait(lambda s: abs(s["material"]["roughness"] - 0.1) < 1e-6, 20, "roughness")
-        s = v.wait(lambda s: s["gi"]["passes"] == 4, 120, "the narrow lobe's passes")
+        s = v.wait(lambda s: s["gi"]["passes"] == 4
+                   and "(pass 4 of 4)" in s["gi"]["pass_words"], 240, "the narrow lobe's passes")
         seen["glossy"] = s["gi"]["passes"]
     finally:
         v.stop()
     # the default preset's counts; the demo sphere's default material (roughness 0.5) is rough
-    assert seen["start"] == (4, 2, pytest.approx(0.5), 2), seen
+    assert seen["start"] == (4, 2, pytest.approx(0.5), 2, ["(pass 2 of 2)"]), seen
     passes, words = seen["slider"]
-    assert passes == 3 and "of 3" in words, seen
+    assert passes == 3 and "(pass 2 of 3)" in words and "(pass 4 of 3)" not in words, seen
     assert seen["glossy"] == 4, seen
 
 

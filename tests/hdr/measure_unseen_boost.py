@@ -4,7 +4,7 @@ factor k, and whether the inputs say what k is.
 
     python tests/hdr/measure_unseen_boost.py [--rooms demo,apartment,city,studio,warehouse]
         [--photos plain,wide-roll,narrow-dark,beside] [--json out.json]
-        [--floor 0.1,0.25,0.5 [--points 50000] [--face-size 512]]
+        [--points 50000] [--floor 0.1,0.25,0.5 [--face-size 512]]
 
 Per case of `scanlight bench expand --rooms` (app/bench/expand_rooms.py: the same rooms, photos,
 relit spheres and ratios - the LDR scan's relative RMSE over the candidate's, higher is better),
@@ -43,8 +43,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from app.bench import expand_rooms as R  # noqa: E402
 from app.cloud import PointCloud  # noqa: E402
 from app.color import luminance  # noqa: E402
+from app.params import BY_KEY  # noqa: E402
 
-TL = 0.9          # hdr.threshold_ldr's default: the points that count as saturated
+TL = BY_KEY["hdr.threshold_ldr"].default   # the points that count as saturated
 STEPS = 25
 FIXED = (4.0, 8.0, 16.0, 32.0)
 
@@ -55,8 +56,8 @@ def boosted(cloud: PointCloud, mask: np.ndarray, k: float) -> PointCloud:
     return PointCloud(cloud.positions, cloud.normals, c.astype(np.float32), True, cloud.source)
 
 
-def measure(room: str, kind: str) -> dict:
-    sc, _ = R.build_case(room, kind, 50000)
+def measure(room: str, kind: str, points: int) -> dict:
+    sc, _ = R.build_case(room, kind, points)
     seen = R.photo_sees(sc.gt, sc.photo_camera)
     s = R.point_ratios(sc.ldr, sc.gt, sc.ldr, seen, TL)["scale"]
     spheres = R.RelitSpheres(sc.gt)
@@ -171,7 +172,7 @@ def main(argv=None) -> int:
         return 0
     for room in a.rooms.split(","):
         for kind in a.photos.split(","):
-            rows.append(measure(room, kind))
+            rows.append(measure(room, kind, a.points))
             print(table(rows[-1:]).splitlines()[-1], flush=True)
     print(table(rows))
     if a.json:

@@ -189,7 +189,7 @@ def test_the_summary_has_a_ratio_or_a_bound_per_case_and_setting():
     assert lines[3] == "| demo | sphere | whole | diffuse | - | - |"
 
 
-def test_every_setting_is_a_render_s():
+def test_every_setting_makes_valid_render_params():
     """Each setting the bench renders makes valid render parameters (Mitsuba not needed): a
     preset key only the viewer reads (pbgi.rough_idle_passes) once made every preset fail."""
     from app.params import QUALITY_PRESETS

@@ -299,6 +299,13 @@ PARAMS: tuple[Param, ...] = (
        "every pixel at another point inside it (anti-aliased edges and mirror images) and "
        "rotates the lobe micro-buffers (their noise averages out); the time grows with them.",
        1, 64, "", redo="none", ui=False),
+    _i("pbgi.glossy_passes", 4, "Passes averaged in a final render (`render`, `turntable`) "
+       "where a metal is smoother than pbgi.rough_scale_from: one pass of its lobe micro-buffers "
+       "casts one ray per micro-pixel, so a bright light in the lobe's tail counts fully or "
+       "not at all (a halo of bright dots around its reflection), and the passes average that "
+       "noise as the viewer's idle passes do. The higher of it and pbgi.passes applies; 1 = "
+       "pbgi.passes everywhere (README, 'One pass of a glossy metal is noisy').", 1, 64, "",
+       redo="none", ui=False),
     _i("pbgi.edge_samples", 8, "Samples per pixel on the asset's silhouettes in a final render "
        "(`scanlight render`, `turntable`): where coverage or depth changes inside a pixel, "
        "more jittered samples of the G-buffer are gathered there only, so each pixel is "

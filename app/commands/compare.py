@@ -162,7 +162,7 @@ def render_side(r, side: Side, loaded, camera, materials, values: dict, given: d
     or an HDRI the command line set, is restored afterwards."""
     from app.render.alpha import over
     from app.pbgi.renderer import RenderParams
-    from app.pbgi.upsample import gi_scale_of, render_upsampled
+    from app.pbgi.upsample import gi_scale_of, render_passes_of, render_upsampled
     vals = side_values(side, values, given)
     cloud, hdri = r.cloud, r.hdri
     if side.kind == "cloud":
@@ -171,7 +171,7 @@ def render_side(r, side: Side, loaded, camera, materials, values: dict, given: d
         r.set_hdri(loaded)
     try:
         res = render_upsampled(r, camera, materials, RenderParams.from_settings(vals),
-                               int(vals["pbgi.passes"]),
+                               render_passes_of(vals, r.materials_for(materials)),
                                gi_scale_of(vals, r.materials_for(materials)),
                                edge_samples=int(vals["pbgi.edge_samples"]))
         image = over(res.image, r.background(camera)) if background else res.image

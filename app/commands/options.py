@@ -36,12 +36,12 @@ RENAMED = {"hdr.threshold_ldr": "--tl", "hdr.threshold_ssd": "--th", "hdr.neighb
 COMMAND_FLAGS: dict[str, dict[str, str]] = {
     "render": _flags(("pbgi.quality",) + RENDER_KEYS + (
         "pbgi.render_scale", "pbgi.rough_render_scale", "pbgi.rough_scale_from", "pbgi.passes",
-        "pbgi.edge_samples",
+        "pbgi.glossy_passes", "pbgi.edge_samples",
         "pbgi.differential",
         "view.exposure", "view.tonemap", "view.eye_dome")),
     "turntable": _flags(("pbgi.quality",) + RENDER_KEYS + (
         "pbgi.render_scale", "pbgi.rough_render_scale", "pbgi.rough_scale_from", "pbgi.passes",
-        "pbgi.edge_samples",
+        "pbgi.glossy_passes", "pbgi.edge_samples",
         "pbgi.differential",
         "view.exposure", "view.tonemap", "view.eye_dome", "view.fov_y"), {"view.fov_y": "--fov"}),
     "expand": _flags(EXPAND_KEYS),

@@ -126,7 +126,7 @@ def run(args) -> int:
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams, render_steps
-    from app.pbgi.upsample import gi_scale_of, render_upsampled
+    from app.pbgi.upsample import gi_scale_of, render_passes_of, render_upsampled
     from app.render.memory import check_render_memory
 
     values = _check_args(args)
@@ -163,7 +163,7 @@ def run(args) -> int:
                             "tonemapper": tonemapper_named(tonemapper).title,
                             "exposure": exposure})
     params = RenderParams.from_settings(values)
-    passes = int(values["pbgi.passes"])
+    passes = render_passes_of(values, r.materials_for(materials))
     scale = gi_scale_of(values, r.materials_for(materials))
     edge_samples = int(values["pbgi.edge_samples"])
     steps = render_steps(passes, edge_samples if scale >= 1 else passes)

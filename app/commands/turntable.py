@@ -258,7 +258,7 @@ def run(args) -> int:
     from app.io.pointcloud import load_cloud
     from app.material import load_material
     from app.pbgi.renderer import Relighter, RenderParams
-    from app.pbgi.upsample import gi_scale_of, render_upsampled
+    from app.pbgi.upsample import gi_scale_of, render_passes_of, render_upsampled
     from app.render.memory import check_render_memory
     from app.render.tonemap import tonemap_to_srgb8
 
@@ -281,7 +281,7 @@ def run(args) -> int:
     r.set_cloud(cloud)
     r.set_asset(mesh)
     params = RenderParams.from_settings(values)
-    passes = int(values["pbgi.passes"])
+    passes = render_passes_of(values, r.materials_for(materials))
     scale = gi_scale_of(values, r.materials_for(materials))
     edge_samples = int(values["pbgi.edge_samples"])
     exposure, tonemapper = values["view.exposure"], values["view.tonemap"]
@@ -320,7 +320,9 @@ def run(args) -> int:
 
     w, h = cams[0].width, cams[0].height
     summary = (f"rendered {n} frame{'s' if n != 1 else ''} {first}-{last} of {count}, {w}x{h} "
-               f"({params.mode}, M={params.microbuffer}) in {seconds:.1f} s into {out_dir}")
+               f"({params.mode}, M={params.microbuffer}"
+               + (f", {passes} passes each" if passes > 1 else "")
+               + f") in {seconds:.1f} s into {out_dir}")
     if not args.no_video:
         missing = [k for k in range(count) if not frame_paths(out_dir, k)[1].is_file()]
         if missing:

@@ -94,6 +94,27 @@ def gi_scale(render_scale: float, rough_render_scale: float, materials,
     return scale
 
 
+def render_passes_of(values, materials) -> int:
+    """Passes of a final render (`render`, `turntable`, `compare`) for these materials:
+    ``pbgi.passes``, raised to ``pbgi.glossy_passes`` where a material is a glossy metal
+    (``glossy_metal``). The render-side twin of the viewer's idle passes
+    (app/ui/engine.py: layer_passes): one pass of a metal's lobe micro-buffers is noise - one
+    ray per micro-pixel, so a bright light in the lobe's tail counts fully or not at all - that
+    only passes average, while a dielectric's lobe is too weak (F0 about 4%) and a rough one too
+    wide for it to show (README, "One pass of a glossy metal is noisy")."""
+    passes = int(values["pbgi.passes"])
+    if any(glossy_metal(m, values["pbgi.rough_scale_from"]) for m in materials):
+        return max(passes, int(values["pbgi.glossy_passes"]))
+    return passes
+
+
+def glossy_metal(material, rough_from: float) -> bool:
+    """A material with a metal share (metallic > 0; glTF's texture can only lower it) whose
+    specular lobe is not rough in the sense of ``rough_for_scale`` (a roughness texture never
+    is, as it may make the lobe smoother anywhere)."""
+    return float(material.metallic) > 0.0 and not rough_for_scale(material, rough_from)
+
+
 def rough_scene(materials, rough_from: float) -> bool:
     """Is every material rough (``rough_for_scale``)? Such a scene takes the rough GI scale here
     and the viewer's rough idle passes (app/ui/engine.py: layer_passes)."""

@@ -162,6 +162,65 @@ def test_render_passes_average_jittered_renders(inputs, capsys):
     assert set(np.unique(one_alpha)) <= {0.0, 1.0}
 
 
+def test_glossy_passes_follow_the_materials():
+    """render_passes_of: pbgi.passes, raised to pbgi.glossy_passes where a metal is smoother than
+    pbgi.rough_scale_from (or has a roughness texture, which can make it smoother anywhere); a
+    dielectric's weak lobe and a rough metal keep pbgi.passes, and more passes asked win."""
+    from dataclasses import replace
+    from app.material import Material
+    from app.params import BY_KEY
+    from app.pbgi.upsample import render_passes_of
+    values = {k: BY_KEY[k].default for k in ("pbgi.passes", "pbgi.glossy_passes",
+                                             "pbgi.rough_scale_from")}
+    assert (values["pbgi.passes"], values["pbgi.glossy_passes"]) == (1, 4)
+    gold = Material(base_color=(1.0, 0.71, 0.29), metallic=1.0, roughness=0.2)
+    rough_gold = replace(gold, roughness=0.5)
+    plastic = Material(roughness=0.2)
+    half_metal = replace(gold, metallic=0.3)
+    textured = replace(rough_gold, metallic_roughness_texture=np.ones((2, 2, 3), np.float32))
+    assert render_passes_of(values, [gold]) == 4
+    assert render_passes_of(values, [plastic, gold]) == 4        # one glossy metal is enough
+    assert render_passes_of(values, [half_metal]) == 4
+    assert render_passes_of(values, [textured]) == 4
+    assert render_passes_of(values, [rough_gold]) == 1
+    assert render_passes_of(values, [plastic]) == 1
+    assert render_passes_of({**values, "pbgi.rough_scale_from": 0.15}, [gold]) == 1
+    assert render_passes_of({**values, "pbgi.passes": 6}, [gold]) == 6
+    assert render_passes_of({**values, "pbgi.glossy_passes": 1}, [gold]) == 1
+
+
+def test_render_gives_a_glossy_metal_its_passes(inputs, capsys):
+    """`render` of a gold sphere averages pbgi.glossy_passes (4) passes by default - the stats
+    and stdout say so and the image is Relighter.render_passes' mean of 4 - and
+    --glossy-passes 1 renders one pass, as for a rough material."""
+    from app.camera import load_camera
+    from app.cloud import PointCloud
+    from app.io.formats import load_object, placed_mesh
+    from app.io.pointcloud import load_cloud
+    from app.material import load_material
+    from app.pbgi.renderer import Relighter, RenderParams
+    d = inputs
+    (d / "gold.json").write_text(json.dumps({"base_color": [1.0, 0.71, 0.29], "metallic": 1.0,
+                                             "roughness": 0.2}))
+    gold = ["--material", str(d / "gold.json")]
+    common = ["--microbuffer", "8", "--edge-samples", "1", "--differential", "false"]
+    assert main(_args(d, *common, *gold, "--stats", str(d / "gold.json.stats"))) == 0
+    assert "4 passes" in capsys.readouterr().out
+    assert json.loads((d / "gold.json.stats").read_text())["passes"] == 4
+    cli = read_exr_layers(d / "out.exr")[""]
+    r = Relighter()
+    c = load_cloud(d / "room.ply")
+    r.set_cloud(PointCloud(c.positions, c.normals, c.colors, hdr=True))
+    r.set_asset(placed_mesh(load_object(d / "obj.json")))
+    api = r.render_passes(load_camera(d / "cam.json"), [load_material(d / "gold.json")],
+                          RenderParams(microbuffer=8), 4).image
+    np.testing.assert_allclose(cli, api, rtol=1e-5, atol=1e-6)
+    assert main(_args(d, *common, *gold, "--glossy-passes", "1",
+                      "--stats", str(d / "gold.json.stats"))) == 0
+    assert "passes" not in capsys.readouterr().out
+    assert json.loads((d / "gold.json.stats").read_text())["passes"] == 1
+
+
 def _scanlight(*args):
     return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True,
                           timeout=600)

@@ -121,6 +121,29 @@ def test_frames_are_the_orbit_cameras(scene, full, tmp_path):
     assert np.abs(f0 - f2).max() > 0.05
 
 
+def test_a_glossy_metal_frame_averages_its_passes(scene, tmp_path, capsys):
+    """A gold knot's frame averages pbgi.glossy_passes (4) passes, as ``render`` of the same
+    camera does (app/pbgi/upsample.py: render_passes_of), and the summary says so; one pass
+    (--glossy-passes 1) is another picture."""
+    (tmp_path / "gold.json").write_text(json.dumps({"base_color": [1.0, 0.71, 0.29],
+                                                    "metallic": 1.0, "roughness": 0.2}))
+    # one sample on the silhouettes: nearly every pixel of this small knot is on one, and 8
+    # edge samples there would hide the passes (app/pbgi/renderer.py: render_passes)
+    gold = ["--material", str(tmp_path / "gold.json"), "--edge-samples", "1"]
+    out = tmp_path / "gold"
+    assert main(_args(scene, out, *gold, "--range", "1-1", "--no-video")) == 0
+    assert "4 passes each" in capsys.readouterr().out
+    (tmp_path / "cam.json").write_text(json.dumps(_orbit_camera(1)))
+    render = ["render", "--cloud", str(scene / "room.ply"), "--object", str(scene / "obj.json"),
+              "--camera", str(tmp_path / "cam.json"), *RENDER_FLAGS, *gold]
+    assert main([*render, "--out", str(tmp_path / "r4.exr")]) == 0
+    assert "4 passes" in capsys.readouterr().out
+    assert main([*render, "--out", str(tmp_path / "r1.exr"), "--glossy-passes", "1"]) == 0
+    frame = _rgba(out / "frame_0001.exr")
+    assert np.abs(frame - _rgba(tmp_path / "r4.exr")).max() < 1e-4
+    assert np.abs(frame - _rgba(tmp_path / "r1.exr")).max() > 1e-3
+
+
 def test_background_frame_is_render_background(scene, tmp_path):
     """With --background the asset's shadow on the scan is gathered once for the sequence; a
     frame still equals ``render --background`` (which gathers it for its one frame)."""

@@ -194,13 +194,14 @@ ASSET_MATERIALS = {"diffuse": "white diffuse", "glossy": "gold"}
 def demo_sheet(room: dict[str, np.ndarray], relit: dict[str, np.ndarray],
                modes: dict[tuple[str, str], np.ndarray], tonemapper: str,
                room_exposure: float, relit_mode: str,
-               render_size: int) -> tuple[np.ndarray, Layout]:
+               render_size: int, passes: dict | None = None) -> tuple[np.ndarray, Layout]:
     """The demo's sheet from its linear images: ``room`` {"ldr", "hdr", "gt"} (one view,
     ground-truth units) all shown at ``room_exposure`` EV, so the scan's clipped lights look as
     dull as they are; ``relit`` {"ldr",
     "expanded", "gt"}: the asset lit by each cloud in ``relit_mode``; ``modes`` {(material
     kind, mode): image}: the asset lit by the expanded cloud, one row per material kind of
-    ASSET_MATERIALS. Asset images at 0 EV."""
+    ASSET_MATERIALS, ``passes`` {material kind: passes averaged} where more than one. Asset
+    images at 0 EV."""
     from app.render.tonemap import get
     names = {"ldr": "LDR scan", "hdr": "HDR expanded", "gt": "ground truth"}
     diff, legend = difference_tile("log2 HDR/LDR luminance", room["hdr"], room["ldr"])
@@ -219,6 +220,10 @@ def demo_sheet(room: dict[str, np.ndarray], relit: dict[str, np.ndarray],
               "EV, asset (rows 2+) +0 EV; EXRs beside this sheet are linear",
               f"renders {render_size} x {render_size} px, shown at {TILE} px; rows 3+: the asset "
               "lit by the expanded HDR scan in each render mode"]
+    many = [f"{kind} {n}" for kind, n in (passes or {}).items() if n > 1]
+    if many:
+        header.append(f"passes averaged, as scanlight render gives them: {', '.join(many)} "
+                      "(pbgi.glossy_passes), 1 for the others")
     return compose(rows, header, legend=(0, len(rows[0]) - 1, legend))
 
 

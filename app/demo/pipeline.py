@@ -64,22 +64,29 @@ def _over(rgba: np.ndarray, background: np.ndarray) -> np.ndarray:
     return rgba[..., :3] * rgba[..., 3:] + background * (1 - rgba[..., 3:])
 
 
-def _mode_renders(relighter, cloud, cam) -> dict:
-    """{(material kind, mode): linear image over the room}: the asset lit by ``cloud`` in every
-    render mode, for the contact sheet's material rows."""
+def _mode_renders(relighter, cloud, cam) -> tuple[dict, dict]:
+    """({(material kind, mode): linear image over the room}, {material kind: passes}): the
+    asset lit by ``cloud`` in every render mode, for the contact sheet's material rows, each
+    the mean of the passes `scanlight render` gives that material by default
+    (app/pbgi/upsample.py: render_passes_of - the gold's lobe noise averaged over 4)."""
     from app.demo.contact_sheet import ASSET_MATERIALS
     from app.material import PRESETS, material_from_dict
-    from app.params import RENDER_MODES
+    from app.params import BY_KEY, RENDER_MODES
     from app.pbgi.renderer import RenderParams
+    from app.pbgi.upsample import render_passes_of
     relighter.set_cloud(cloud)              # same points as the last cloud: recolours the BSH
     background = relighter.splat_renderer().render(cam)[..., :3]
-    out = {}
+    defaults = {k: BY_KEY[k].default for k in ("pbgi.passes", "pbgi.glossy_passes",
+                                               "pbgi.rough_scale_from")}
+    out, passes = {}, {}
     for kind, preset in ASSET_MATERIALS.items():
         mat = material_from_dict({"name": preset, **PRESETS[preset]})
+        passes[kind] = render_passes_of(defaults, [mat])
         for mode in RENDER_MODES:
-            img = relighter.render(cam, [mat], RenderParams(mode=mode, microbuffer=16)).image
+            img = relighter.render_passes(cam, [mat], RenderParams(mode=mode, microbuffer=16),
+                                          passes[kind]).image
             out[(kind, mode)] = _over(img, background)
-    return out
+    return out, passes
 
 
 def write_scene_files(out: Path, scene: room.DemoScene, size: int) -> dict:
@@ -175,18 +182,20 @@ def run_demo(out: Path, size: int = DEFAULT_SIZE, n_points: int = 200_000,
     splat.release()
 
     t = time.perf_counter()
-    modes = _mode_renders(relighter, clouds["expanded"], room.default_views(size, size)["closeup"])
+    modes, mode_passes = _mode_renders(relighter, clouds["expanded"],
+                                       room.default_views(size, size)["closeup"])
     timings["modes_s"] = time.perf_counter() - t
     from app.demo.contact_sheet import demo_sheet
     from app.io.images import write_png
     relit = {name: _over(img, backgrounds["closeup"]) for name, img in closeups.items()}
     sheet, layout = demo_sheet({"ldr": ldr_img, "hdr": hdr_img, "gt": gt_img}, relit, modes,
-                               tonemapper, HDR_ROOM_EXPOSURE, mode, size)
+                               tonemapper, HDR_ROOM_EXPOSURE, mode, size, mode_passes)
     write_png(out / "contact_sheet.png", sheet)
 
     return {"scene": {k: str(v) for k, v in files.items()}, "points": len(scene.gt),
             "alpha": scene.alpha, "expansion": exp.report, "point_errors": point_err,
-            "render_mode": mode, "render_errors": renders, "timings": timings, "summary": summary,
+            "render_mode": mode, "render_errors": renders, "mode_passes": mode_passes,
+            "timings": timings, "summary": summary,
             "tonemapper": tonemap_get(tonemapper).title, "tonemap": tonemapper,
             "contact_sheet": {"file": str(out / "contact_sheet.png"), "size": layout.size,
-                              "tiles": layout.tiles}}
+                              "tiles": layout.tiles, "lines": layout.lines}}

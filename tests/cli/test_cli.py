@@ -96,6 +96,11 @@ def test_view_without_display_falls_back_to_demo(tmp_path, monkeypatch):
     assert info["file"] == str(tmp_path / "out" / "contact_sheet.png")
     assert tuple(info["size"]) == (sheet.shape[1], sheet.shape[0])
     tiles = info["tiles"]
+    # the gold row averages the passes `render` gives a glossy metal (pbgi.glossy_passes), the
+    # white diffuse one pass, and the sheet's header says so
+    from app.params import BY_KEY
+    assert rep["mode_passes"] == {"diffuse": 1, "glossy": BY_KEY["pbgi.glossy_passes"].default}
+    assert any("glossy 4" in line for line in info["lines"])
     for kind in ("diffuse (white diffuse)", "glossy (gold)"):
         for mode in RENDER_MODES:
             x0, y0, x1, y1 = tiles[f"{kind}, {mode}"]

@@ -126,6 +126,20 @@ def test_compare_with_an_hdri_side(room, tmp_path):
     assert s["compare"]["metrics"]["rel_rmse"] > 0.01
 
 
+def test_compare_gives_a_glossy_metal_its_passes(room, tmp_path):
+    """Each side of a gold sphere's compare averages pbgi.glossy_passes (4) passes, as `render`
+    does (app/pbgi/upsample.py: render_passes_of), unless --glossy-passes says otherwise."""
+    (tmp_path / "gold.json").write_text(json.dumps({"base_color": [1.0, 0.71, 0.29],
+                                                    "metallic": 1.0, "roughness": 0.2}))
+    gold = ["--material", str(tmp_path / "gold.json"), "--edge-samples", "1"]
+    for extra, want in (([], 4), (["--glossy-passes", "1"], 1)):
+        stats = tmp_path / f"g{want}.json"
+        assert main(_args(room, *gold, *extra, "--compare", "mode:classic", "mode:hybrid",
+                          "--out", str(tmp_path / f"g{want}.exr"), "--stats", str(stats))) == 0
+        s = json.loads(stats.read_text())["compare"]
+        assert (s["a_stats"]["passes"], s["b_stats"]["passes"]) == (want, want)
+
+
 def test_compare_refuses_a_missing_side_file(room, tmp_path, capsys):
     assert main(_args(room, "--compare", "mode:envmap", f"cloud:{tmp_path / 'none.ply'}",
                       "--out", str(tmp_path / "x.exr"))) == 3

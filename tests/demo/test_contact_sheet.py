@@ -157,3 +157,10 @@ def test_demo_sheet_names_everything_and_shows_each_source():
     assert [n for n, b in lay.tiles.items() if b[1] == ys[3]] == [
         f"glossy (gold), {m}" for m in ("classic", "mipmapped", "hybrid", "envmap")]
     assert lay.tiles["log2 HDR/LDR luminance"][1] == ys[0]
+    # a material row averaged over passes is named in the header; one pass is the default
+    assert not any("passes" in line for line in lay.lines)
+    _, lay4 = cs.demo_sheet(room, relit, modes, "aces", -2.0, "hybrid", 20,
+                            {"diffuse": 1, "glossy": 4})
+    assert [line for line in lay4.lines if "passes" in line] == [
+        "passes averaged, as scanlight render gives them: glossy 4 (pbgi.glossy_passes), 1 "
+        "for the others"]

@@ -12,6 +12,13 @@ needs Mitsuba 3), each render is what `scanlight render` makes at the default pr
 scene as app/pbgi/upsample.py: gi_scale gives it, pbgi.edge_samples on the silhouettes) with N
 passes; the table gives the relative RMSE per pixel and 4x4-pooled, FLIP, bright dots (pixels
 above 1.3x the median of their 5 x 5 neighbourhood, as the README counts them) and seconds.
+
+    python tests/pbgi/measure_glossy_passes.py --sweep [--rooms apartment,city]
+
+instead takes the glossy sweep's committed 96 x 96 references (tests/pbgi/references, no Mitsuba
+needed; app/bench/glossy.py's scene, Hybrid M 24): metal and dielectric at roughness 0 - 0.3,
+1 pass against 4, each with the silhouettes' 8 edge samples as `render` gives them - whether
+a dielectric's lobe needs the passes a metal's does.
 """
 
 from __future__ import annotations
@@ -33,6 +40,36 @@ def dots(image: np.ndarray, mask: np.ndarray) -> int:
     return int(((lum > 1.3 * np.median(stack, axis=0)) & mask).sum())
 
 
+def sweep(rooms: list[str]) -> list[dict]:
+    """The --sweep table (module docstring)."""
+    from app.bench import glossy as G
+    from app.bench import image_metrics as im
+    from app.pbgi.renderer import Relighter, RenderParams
+    rows = []
+    for room in rooms:
+        cloud, mesh, cam = G.glossy_scene(f"../shared/data/{room}.exr")
+        rl = Relighter()
+        rl.set_cloud(cloud)
+        rl.set_asset(mesh)
+        params = RenderParams(mode="hybrid", microbuffer=24)
+        for kind in ("dielectric", "metal"):
+            for r in (0.0, 0.05, 0.1, 0.2, 0.3):
+                ref = G.load_reference(room, kind, r)
+                cells = []
+                for n in (1, 4):
+                    img = rl.render_passes(cam, [G.material(kind, r)], params, n,
+                                           edge_samples=8).image
+                    e = G.evaluate(img, ref)
+                    row = {"room": room, "material": kind, "roughness": r, "passes": n,
+                           "rel_rmse": e["rel_rmse"], "rel_rmse_4x4": e["rel_rmse_4x4"],
+                           "dots": dots(img, im.erode(img[..., 3] > 0.5, G.MASK_ERODE))}
+                    rows.append(row)
+                    cells.append(f"{100 * e['rel_rmse']:.1f} / {100 * e['rel_rmse_4x4']:.1f}%, "
+                                 f"{row['dots']}")
+                print(f"| {room} | {kind} {r:g} | {cells[0]} | {cells[1]} |", flush=True)
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rooms", default="demo,apartment")
@@ -41,7 +78,15 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=0,
                     help="the references' samples per pixel (0: the trade-off bench's per room)")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--sweep", action="store_true",
+                    help="the glossy sweep's committed references instead (module docstring)")
     args = ap.parse_args(argv)
+    if args.sweep:
+        rows = sweep([r for r in args.rooms.split(",") if r != "demo"] or ["apartment"])
+        if args.json:
+            with open(args.json, "w", encoding="utf-8") as f:
+                json.dump(rows, f, indent=1)
+        return 0
 
     from app.bench import image_metrics as im
     from app.bench import tradeoff as T

@@ -304,8 +304,8 @@ PARAMS: tuple[Param, ...] = (
        "casts one ray per micro-pixel, so a bright light in the lobe's tail counts fully or "
        "not at all (a halo of bright dots around its reflection), and the passes average that "
        "noise as the viewer's idle passes do. The higher of it and pbgi.passes applies; 1 = "
-       "pbgi.passes everywhere (README, 'One pass of a glossy metal is noisy').", 1, 64, "",
-       redo="none", ui=False),
+       "pbgi.passes everywhere (README, 'A glossy metal's final render takes 4 passes').", 1,
+       64, "", redo="none", ui=False),
     _i("pbgi.edge_samples", 8, "Samples per pixel on the asset's silhouettes in a final render "
        "(`scanlight render`, `turntable`): where coverage or depth changes inside a pixel, "
        "more jittered samples of the G-buffer are gathered there only, so each pixel is "

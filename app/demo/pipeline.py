@@ -76,8 +76,7 @@ def _mode_renders(relighter, cloud, cam) -> tuple[dict, dict]:
     from app.pbgi.upsample import render_passes_of
     relighter.set_cloud(cloud)              # same points as the last cloud: recolours the BSH
     background = relighter.splat_renderer().render(cam)[..., :3]
-    defaults = {k: BY_KEY[k].default for k in ("pbgi.passes", "pbgi.glossy_passes",
-                                               "pbgi.rough_scale_from")}
+    defaults = {k: param.default for k, param in BY_KEY.items()}
     out, passes = {}, {}
     for kind, preset in ASSET_MATERIALS.items():
         mat = material_from_dict({"name": preset, **PRESETS[preset]})

@@ -101,7 +101,8 @@ def render_passes_of(values, materials) -> int:
     (app/ui/engine.py: layer_passes): one pass of a metal's lobe micro-buffers is noise - one
     ray per micro-pixel, so a bright light in the lobe's tail counts fully or not at all - that
     only passes average, while a dielectric's lobe is too weak (F0 about 4%) and a rough one too
-    wide for it to show (README, "One pass of a glossy metal is noisy")."""
+    wide for it to show (README, "A glossy metal's final render takes 4 passes", with the
+    measurements)."""
     passes = int(values["pbgi.passes"])
     if any(glossy_metal(m, values["pbgi.rough_scale_from"]) for m in materials):
         return max(passes, int(values["pbgi.glossy_passes"]))

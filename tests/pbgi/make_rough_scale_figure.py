@@ -3,7 +3,8 @@ docs/rough_scale.png; with ``--cases`` and ``--settings`` the others of "Speed a
 (the scale by roughness, ``pbgi.rough_scale_from``: docs/rough_scale_from.png; the ``final``
 preset, Classic M 24 before and Hybrid M 24 after: docs/final_preset.png; the ``balanced``
 preset, Hybrid M 24 before and M 20 after: docs/balanced_preset.png; a rough scene's idle
-passes at ``balanced``, 4 before and 2 after: docs/rough_idle_passes.png).
+passes at ``balanced``, 4 before and 2 after: docs/rough_idle_passes.png; a glossy metal's
+final render, 1 pass before and ``pbgi.glossy_passes`` after: docs/glossy_passes.png).
 
     python tests/pbgi/make_rough_scale_figure.py [--out docs/rough_scale.png]
     python tests/pbgi/make_rough_scale_figure.py --out docs/rough_scale_from.png \
@@ -14,13 +15,16 @@ passes at ``balanced``, 4 before and 2 after: docs/rough_idle_passes.png).
         --cases demo:diffuse,demo:rough_metal,apartment:rough_metal
     python tests/pbgi/make_rough_scale_figure.py --out docs/rough_idle_passes.png \
         --settings passes --cases demo:diffuse,demo:rough_metal,apartment:clearcoat
+    python tests/pbgi/make_rough_scale_figure.py --out docs/glossy_passes.png \
+        --settings glossy_passes --cases demo:glossy,apartment:glossy,apartment:near_mirror
 
 Per case (the trade-off bench's rooms and materials, or gold of roughness R as ``gold_rR``;
 256 x 256 close-ups): the path-traced reference (app/bench/tradeoff.py's, cached; Mitsuba 3
 renders it if it is missing), the image before and after (``--settings scale``: Hybrid M 24 at
 GI scale 1 and 1/2; ``mode``: Classic M 24 and Hybrid M 24; ``m``: Hybrid M 24 and M 20 at
 the scale per scene; ``passes``: ``balanced`` as the viewer converges a rough scene, the mean
-of 4 passes before pbgi.rough_idle_passes and of 2 after), and each one's |image - reference|
+of 4 passes before pbgi.rough_idle_passes and of 2 after; ``glossy_passes``: ``balanced``, one
+pass before and 4 after), and each one's |image - reference|
 x 5 over the asset, both 4x4-pooled (the reference's own noise averages out), tone mapped
 alike.
 Prints each image's 4x4-pooled relative RMSE (the bench's evaluate).
@@ -46,10 +50,13 @@ SETTINGS = {"scale": (T.make_setting("hybrid", 1.0, m=24), T.make_setting("hybri
             "mode": (T.make_setting("classic", 1.0, m=24), T.make_setting("hybrid", 1.0, m=24)),
             "m": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=24),
                   T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20)),
-            "passes": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20),) * 2}
+            "passes": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20),) * 2,
+            "glossy_passes": (T.make_setting("hybrid", 1.0, rough_scale=0.5, m=20),) * 2}
 # passes averaged for each image of a pair (1 each where not named): ``passes`` is balanced
-# with the viewer's idle passes of a rough scene before (4) and after (2) pbgi.rough_idle_passes
-PASSES = {"passes": (4, 2)}
+# with the viewer's idle passes of a rough scene before (4) and after (2) pbgi.rough_idle_passes;
+# ``glossy_passes`` balanced as a final render of a glossy metal, one pass before and
+# pbgi.glossy_passes (4) after
+PASSES = {"passes": (4, 2), "glossy_passes": (1, 4)}
 GOLD = "gold_r"
 
 

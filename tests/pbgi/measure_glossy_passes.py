@@ -32,8 +32,8 @@ import numpy as np
 
 def dots(image: np.ndarray, mask: np.ndarray) -> int:
     """Pixels of ``mask`` brighter than 1.3x the median luminance of their 5 x 5 neighbourhood."""
-    from app.bench.image_metrics import LUMA
-    lum = np.asarray(image[..., :3], np.float64) @ np.asarray(LUMA, np.float64)
+    from app.color import luminance
+    lum = luminance(image[..., :3])
     pad = np.pad(lum, 2, mode="edge")
     h, w = lum.shape
     stack = np.stack([pad[y:y + h, x:x + w] for y in range(5) for x in range(5)])
@@ -81,18 +81,21 @@ def main(argv=None) -> int:
     ap.add_argument("--sweep", action="store_true",
                     help="the glossy sweep's committed references instead (module docstring)")
     args = ap.parse_args(argv)
-    if args.sweep:
-        rows = sweep([r for r in args.rooms.split(",") if r != "demo"] or ["apartment"])
-        if args.json:
-            with open(args.json, "w", encoding="utf-8") as f:
-                json.dump(rows, f, indent=1)
-        return 0
+    rows = (sweep([r for r in args.rooms.split(",") if r != "demo"] or ["apartment"])
+            if args.sweep else measure(args))
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump(rows, f, indent=1)
+    return 0
 
+
+def measure(args) -> list[dict]:
+    """The default table (module docstring)."""
     from app.bench import image_metrics as im
     from app.bench import tradeoff as T
     from app.params import BY_KEY, DEFAULT_QUALITY, QUALITY_PRESETS
     from app.pbgi.renderer import Relighter, RenderParams
-    from app.pbgi.upsample import gi_scale, render_upsampled
+    from app.pbgi.upsample import gi_scale_of, render_upsampled
     preset = QUALITY_PRESETS[DEFAULT_QUALITY]
     values = {k: BY_KEY[k].default for k in BY_KEY if k.startswith("pbgi.")} | preset
     params = RenderParams.from_settings(values)
@@ -107,8 +110,7 @@ def main(argv=None) -> int:
         for kind in args.materials.split(","):
             mat = T.material(kind)
             ref = T.reference(room, kind, rl, cloud, mesh, camera, spp, T.reference_dir())
-            scale = gi_scale(values["pbgi.render_scale"], values["pbgi.rough_render_scale"],
-                             [mat], values["pbgi.rough_scale_from"])
+            scale = gi_scale_of(values, [mat])
             render_upsampled(rl, camera, [mat], params, 1, scale, edge_samples=edge)  # warm
             for n in (int(p) for p in args.passes.split(",")):
                 t = time.perf_counter()
@@ -126,10 +128,7 @@ def main(argv=None) -> int:
                 print(f"| {room} | {kind} | {n} | {100 * e['rel_rmse']:.1f}% / "
                       f"{100 * e['rel_rmse_4x4']:.2f}% | {e['flip']:.3f} | {row['dots']} "
                       f"({row['ref_dots']}) | {seconds:.1f} |", flush=True)
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as f:
-            json.dump(rows, f, indent=1)
-    return 0
+    return rows
 
 
 if __name__ == "__main__":

@@ -13,6 +13,21 @@
 // Resumable like pbgi_classic.glsl (llvmpipe ends every loop of an invocation after 65,535
 // iterations in total): state[i] is a ClassicState; a receiver that needs no lobe buffer is done
 // at once.
+//
+// LOBE_ACCEPTED_TABLE 1 (app/pbgi/lobe.py: LobeWalkTuning, llvmpipe's): llvmpipe runs the code
+// of every branch of a loop's body on every iteration, taken or not, so work that only some
+// iterations need is moved out of the loops that would pay it on all of them:
+// - the walk decides on a node's rings alone (lobe_rect_rings: the smallest micro-pixel it
+//   covers, and whether it is in the domain); the sectors of its rectangle, and an accepted inner
+//   node's second rectangle (of its own sphere), are computed once per accepted node in a loop of
+//   their own, which also drops a node whose own sphere misses the domain;
+// - that loop also prepares each accepted node's ray-cast record (cut_node) into a table, so the
+//   flat ray-cast loop reads it instead of fetching and deriving it on every micro-pixel;
+// - the receiver's row of the lobe buffer is kept in the invocation's memory while it is ray cast
+//   and stored once at the end, instead of an image load (and store) per hit.
+// The micro-buffers, the walk's visits and its ray tests are the same as with 0, which a GPU
+// takes (there every branch costs only where taken, and these tables are spilled local memory):
+// tests/pbgi/test_lobe_tuning.py.
 #define LOBE_BUFFER 1
 #include "lib/common.glsl"
 #include "lib/principled.glsl"
@@ -66,6 +81,16 @@ uniform float u_leaf_radius;    // a leaf is a disc of at least this radius (the
 #if LOBE_RAY_TABLE
 vec4 lobe_rays[LOBE_CELLS];
 #endif
+#ifndef LOBE_ACCEPTED_TABLE
+#define LOBE_ACCEPTED_TABLE 1
+#endif
+#if LOBE_ACCEPTED_TABLE
+vec4 accepted_sphere[CUT_LIST_CAP];   // MbNode: dv, r2 (a leaf's grown by u_leaf_radius)
+vec4 accepted_cone[CUT_LIST_CAP];     // MbNode: axis, sin_a
+float accepted_inv_area[CUT_LIST_CAP];
+uint row_key[LOBE_CELLS];             // the receiver's row while it is ray cast
+uint row_node[LOBE_CELLS];
+#endif
 
 vec4 lobe_ray(LobeFrame F, uint cell) {
 #if LOBE_RAY_TABLE
@@ -79,8 +104,42 @@ vec4 lobe_ray(LobeFrame F, uint cell) {
 }
 
 void lobe_write(uint receiver, uint k, uint key, uint node) {
+#if LOBE_ACCEPTED_TABLE
+    if (key < row_key[k]) {
+        row_key[k] = key;
+        row_node[k] = node;
+    }
+#else
     ivec2 c = ivec2(int(k), int(receiver));
     if (key < lobe_entry_at(c).key) lobe_entry_store(c, MbEntry(key, node));
+#endif
+}
+
+// Accepted node ``a`` (a leaf: its sphere grown by u_leaf_radius) as seen from p: its rectangle
+// of micro-pixels (0xFFFFFFFF: outside the domain) and its ray-cast record. The same figures as
+// the walk's own (LOBE_ACCEPTED_TABLE 0), expression for expression.
+uint accepted_rect(LobeFrame F, uint a, vec3 p, out MbNode nd) {
+    BshSphere s = tnode_sphere(a);
+    bool leaf = (tnode_link(a).count_flags & BSH_TEX_LEAF_BIT) != 0u;
+    float grow = cut_is_asset(a) ? 0.0 : u_leaf_radius;
+    float r = s.radius + grow;
+    if (!leaf) r -= grow;                                  // (the walk's own_r, rounding too)
+    vec3 dv = s.center - p;
+    float d2 = dot(dv, dv);
+    nd = cut_node(a, p, u_inv_cell_area);
+    if (leaf && !cut_is_asset(a)) {
+        float rl = sqrt(nd.r2) + u_leaf_radius;
+        nd.r2 = rl * rl;
+    }
+    if (leaf && d2 <= r * r) return (F.rings - 1u) << 8u | (F.sectors << 24u);   // inside
+    float inv_d = inversesqrt(d2);
+    float om;
+    if (leaf) {
+        float sin_b = r * inv_d;
+        return lobe_rect(F, dv * inv_d, sin_b, sqrt(max(1.0 - sin_b * sin_b, 0.0)), om);
+    }
+    float sin_o2 = min(r * r / d2, 1.0);
+    return lobe_rect(F, dv * inv_d, sqrt(sin_o2), sqrt(1.0 - sin_o2), om);
 }
 
 void main() {
@@ -146,18 +205,24 @@ void main() {
                     || cut_back_facing(tnode_cone(node), dv * inv_d, sin_b, cos_b)) {
                 next = link.skip;           // outside the lobe's cone, or back-facing (Fig. 5)
             } else {
+#if LOBE_ACCEPTED_TABLE
+                rect = lobe_rect_rings(F, dv * inv_d, sin_b, cos_b, om_min);   // every sector
+#else
                 rect = lobe_rect(F, dv * inv_d, sin_b, cos_b, om_min);
+#endif
                 if (rect == 0xFFFFFFFFu) {
                     next = link.skip;                      // outside the lobe's domain
                 } else {
                     float sin_o2 = min(own_r * own_r / d2, 1.0);
                     float omega = TWO_PI * sin_o2 / (1.0 + sqrt(1.0 - sin_o2));
                     accept = leaf || omega <= u_stop_factor * om_min;
+#if !LOBE_ACCEPTED_TABLE
                     if (accept && !leaf) {                 // drawn as its own sphere
                         float sin_o = sqrt(sin_o2), om;
                         rect = lobe_rect(F, dv * inv_d, sin_o, sqrt(1.0 - sin_o2), om);
                         if (rect == 0xFFFFFFFFu) { accept = false; next = link.skip; }
                     }
+#endif
                 }
             }
         } else if (leaf) {                                 // receiver inside a leaf
@@ -177,6 +242,35 @@ void main() {
         steps++;
     }
 
+#if LOBE_ACCEPTED_TABLE
+    // ---- the accepted nodes' rectangles and ray-cast records; the row ----------------------
+    // (the walk's rectangles had every sector, so its budget check above was conservative)
+    uint kept = 0u;
+    cost = 0u;
+    for (uint a = 0u; a < uint(CUT_LIST_CAP); ++a) {
+        if (a == count) break;
+        uint an = cut_list_node[a];
+        MbNode rec;
+        uint rc = accepted_rect(F, an, p, rec);
+        if (rc != 0xFFFFFFFFu) {                           // (an inner node's own sphere may miss)
+            cut_list_node[kept] = an;
+            cut_list_rect[kept] = rc;
+            accepted_sphere[kept] = vec4(rec.dv, rec.r2);
+            accepted_cone[kept] = vec4(rec.axis, rec.sin_a);
+            accepted_inv_area[kept] = rec.inv_area;
+            cost += lobe_rect_cells(rc);
+            kept++;
+        }
+    }
+    count = kept;
+    uint row_cells = size.x * size.y;
+    for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {
+        if (c == row_cells) break;
+        MbEntry e = lobe_entry_at(ivec2(int(c), int(i)));
+        row_key[c] = e.key;
+        row_node[c] = e.node;
+    }
+#endif
     // ---- ray cast the accepted nodes through their micro-pixels: one flat loop --------------
     uint k = 0u, n = 0u, it;
     MbNode nd;
@@ -189,12 +283,18 @@ void main() {
 #else
     for (it = 0u; it < cost; ++it) {
         if (load) {
+#if LOBE_ACCEPTED_TABLE
+            vec4 sph = accepted_sphere[k], cone = accepted_cone[k];
+            nd = MbNode(sph.xyz, dot(sph.xyz, sph.xyz), sph.w, cone.xyz, cone.w,
+                        accepted_inv_area[k], cut_list_node[k]);
+#else
             nd = cut_node(cut_list_node[k], p, u_inv_cell_area);
             if ((tnode_link(nd.index).count_flags & BSH_TEX_LEAF_BIT) != 0u
                     && !cut_is_asset(nd.index)) {
                 float r = sqrt(nd.r2) + u_leaf_radius;
                 nd.r2 = r * r;
             }
+#endif
             rect = cut_list_rect[k];
             cells = lobe_rect_cells(rect);
             cur = lobe_cursor(F, rect);
@@ -209,6 +309,12 @@ void main() {
             if (key != MB_EMPTY) lobe_write(i, cell, key, nd.index);
         }
         if (++n == cells) { k++; load = true; }
+    }
+#endif
+#if LOBE_ACCEPTED_TABLE
+    for (uint c = 0u; c < uint(LOBE_CELLS); ++c) {
+        if (c == row_cells) break;
+        lobe_entry_store(ivec2(int(c), int(i)), MbEntry(row_key[c], row_node[c]));
     }
 #endif
     uint resume = (it == cost && k == count) ? node : cut_list_node[min(k, count - 1u)];

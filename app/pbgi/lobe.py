@@ -50,19 +50,30 @@ class LobeWalkTuning:
     dispatch into a table (LOBE_CELLS vec4s), or again for each accepted node that covers it.
     ``list_cap``: accepted nodes a dispatch collects before it ray casts them (two uint arrays
     of that length), so also how many dispatches a receiver's walk takes.
+    ``accepted_table``: shaders/pbgi_lobe.glsl's LOBE_ACCEPTED_TABLE - the walk decides on a
+    node's rings alone and a loop of its own over the accepted nodes computes their rectangles'
+    sectors and their ray-cast records into a table (36 bytes a node), and the receiver's row
+    is ray cast in the invocation's memory; without it the walk computes each rectangle whole
+    and the ray casts fetch each node's record and read and write the image per hit.
 
     On llvmpipe the table saves the warp's trigonometry - a micro-pixel is ray cast against
     ~10-30 nodes - and the arrays live in the invocation's own stack, so it keeps both. On a GPU
     both are per-thread local memory, spilled to the caches and DRAM for thousands of threads at
     once, and they cost more than the trigonometry and the extra dispatches they save: a GPU
     computes each ray where it is cast and keeps a shorter list (the sizes measured in the
-    README)."""
+    README). The accepted-node table follows the same split: llvmpipe runs every branch of a
+    loop's body on every iteration, so what only an accepted node needs costs it on every
+    visit and every ray test unless it has a loop of its own; a GPU pays a branch only where
+    it is taken, and the table would be spilled local memory ("The lobe walk's accepted nodes
+    in a table", README). With a table of 512 the list is rarely full, so a receiver's walk
+    seldom takes a second dispatch (its frame and ray table set up again)."""
     list_cap: int
     ray_table: bool
+    accepted_table: bool = False
 
 
-SOFTWARE_TUNING = LobeWalkTuning(list_cap=256, ray_table=True)
-GPU_TUNING = LobeWalkTuning(list_cap=128, ray_table=False)
+SOFTWARE_TUNING = LobeWalkTuning(list_cap=512, ray_table=True, accepted_table=True)
+GPU_TUNING = LobeWalkTuning(list_cap=128, ray_table=False, accepted_table=False)
 LOBE_TUNINGS = {"software": SOFTWARE_TUNING, "gpu": GPU_TUNING}   # by name (bench profile)
 
 
@@ -244,10 +255,14 @@ class LobeBuffers:
         (gather.absent_features; lib/lobe.glsl leaves the anisotropic stretch out)."""
         key = (int(cells), tuple(absent))
         if key not in self._progs:
-            if self.steps + self.splat_budget + self.list_cap + cells >= LOOP_LIMIT:
+            # the walk's visits, its ray tests, the accepted list's loop, the ray table and the
+            # row's load and store: all one invocation's loops together
+            if (self.steps + self.splat_budget + 2 * self.list_cap + 3 * cells
+                    >= LOOP_LIMIT):
                 raise ValueError("the lobe walk's loops would pass llvmpipe's loop limit")
             defines = {"LIST_CAP": self.list_cap, "LOBE_CELLS": int(cells),
-                       "LOBE_RAY_TABLE": int(self.tuning.ray_table)}
+                       "LOBE_RAY_TABLE": int(self.tuning.ray_table),
+                       "LOBE_ACCEPTED_TABLE": int(self.tuning.accepted_table)}
             defines.update({f"PRINCIPLED_NO_{tag}": 1 for tag in absent})
             defines.update(self.defines)
             self._progs[key] = load_compute(self.ctx, "pbgi_lobe.glsl", defines=defines)

@@ -293,7 +293,21 @@ uvec2 lobe_sectors(LobeFrame f, float th, float lo, float bh, float phic, float 
 // (in L) it covers (the cut compares the node with it).
 uint lobe_rect_stretched(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min);
 
+uint lobe_rect_of(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min,
+                  bool sectors);
 uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min) {
+    return lobe_rect_of(f, l, sin_b, cos_b, omega_min, true);
+}
+
+// lobe_rect's rings and omega_min (and whether the node is in the domain), with every sector:
+// what the walk decides on, without the sectors' trigonometry (pbgi_lobe.glsl:
+// LOBE_ACCEPTED_TABLE). Through the stretch it is lobe_rect itself.
+uint lobe_rect_rings(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min) {
+    return lobe_rect_of(f, l, sin_b, cos_b, omega_min, false);
+}
+
+uint lobe_rect_of(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_min,
+                  bool sectors) {
     if (lobe_stretched(f)) return lobe_rect_stretched(f, l, sin_b, cos_b, omega_min);
     vec3 s = l + f.V;
     float len = length(s);
@@ -320,6 +334,7 @@ uint lobe_rect(LobeFrame f, vec3 l, float sin_b, float cos_b, out float omega_mi
     if (!outer && tan2_hi >= f.tan2_split)             // it reaches into the outer piece too
         om = min(om, lobe_omega_h(lobe_piece(f, true), f.tan2_split, dphi));
     omega_min = 4.0 * cos_d * om;
+    if (!sectors) return r0 | (r1 << 8u) | (f.sectors << 24u);
     uvec2 sec = lobe_sectors(f, th, lo, bh, atan(dot(hc, f.B), dot(hc, f.T)) - f.phi0, dphi);
     return r0 | (r1 << 8u) | (sec.x << 16u) | (sec.y << 24u);
 }

@@ -1,7 +1,9 @@
 """The lobe walk's two tunings (app/pbgi/lobe.py: LobeWalkTuning): llvmpipe keeps a per-receiver
-ray table and a long accepted-node list, a GPU computes each ray where it is cast and ray casts
-every 128 accepted nodes. They are two ways to compute the same micro-buffers: both run here, on
-llvmpipe, and must give the same image and the same walk."""
+ray table, a long accepted-node list with each node's rectangle and ray-cast record in a table of
+its own, and the receiver's row in its own memory; a GPU computes each ray where it is cast,
+each rectangle whole in the walk, and ray casts every 128 accepted nodes into the image. They are
+two ways to compute the same micro-buffers: both run here, on llvmpipe, and must give the same
+image and the same walk."""
 
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ def test_renderer_names(renderer, software):
 
 def test_tunings_differ_where_they_should():
     assert SOFTWARE_TUNING.ray_table and not GPU_TUNING.ray_table
+    assert SOFTWARE_TUNING.accepted_table and not GPU_TUNING.accepted_table
     assert GPU_TUNING.list_cap < SOFTWARE_TUNING.list_cap
     assert {tuning_name(t) for t in LOBE_TUNINGS.values()} == set(LOBE_TUNINGS)
 
@@ -40,6 +43,9 @@ MATERIALS = {
     "silver 0.05": Material(base_color=(0.95, 0.95, 0.95), metallic=1.0, roughness=0.05),
     "clearcoat": Material(base_color=(0.2, 0.3, 0.8), roughness=0.4, clearcoat=1.0,
                           clearcoat_gloss=0.9),
+    # the stretched mapping: the walk's rings-only rectangle is lobe_rect_stretched whole
+    "brushed 0.2": Material(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.2,
+                            anisotropic=0.8),
 }
 
 
@@ -53,10 +59,12 @@ def _render(r, mat, tuning):
 
 @pytest.mark.parametrize("name", sorted(MATERIALS))
 def test_gpu_tuning_gives_the_same_image(demo_relighter, name):
-    """Gold, a near mirror and a clearcoat (two lobes in one buffer): the GPU tuning on llvmpipe
-    walks the same nodes, makes the same ray tests and gives the same image as the software
-    tuning (its rays are computed by the same function, only not kept), while its shorter list
-    takes more dispatches. A wrong cell index or a lost resume would change all three."""
+    """Gold, a near mirror, a clearcoat (two lobes in one buffer) and a brushed metal: the GPU
+    tuning on llvmpipe walks the same nodes, makes the same ray tests and gives the same image
+    as the software tuning (its rays are computed by the same function, only not kept; its
+    rectangles in the walk, not in a loop over the accepted nodes), while its shorter list
+    takes more dispatches. A wrong cell index, a lost resume, a rectangle or record that is not
+    the walk's own, or a row not stored would change one of the three."""
     r = demo_relighter
     mat = MATERIALS[name]
     try:

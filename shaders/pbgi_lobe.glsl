@@ -117,29 +117,37 @@ void lobe_write(uint receiver, uint k, uint key, uint node) {
 
 // Accepted node ``a`` (a leaf: its sphere grown by u_leaf_radius) as seen from p: its rectangle
 // of micro-pixels (0xFFFFFFFF: outside the domain) and its ray-cast record. The same figures as
-// the walk's own (LOBE_ACCEPTED_TABLE 0), expression for expression.
+// the walk's own (LOBE_ACCEPTED_TABLE 0), expression for expression; one lobe_rect for both kinds
+// of node and one fetch of each record (llvmpipe would run a call in each branch).
 uint accepted_rect(LobeFrame F, uint a, vec3 p, out MbNode nd) {
     BshSphere s = tnode_sphere(a);
-    bool leaf = (tnode_link(a).count_flags & BSH_TEX_LEAF_BIT) != 0u;
-    float grow = cut_is_asset(a) ? 0.0 : u_leaf_radius;
+    BshLink link = tnode_link(a);
+    nd = cut_node_of(a, s, tnode_cone(a), link, p, u_inv_cell_area);
+    bool leaf = (link.count_flags & BSH_TEX_LEAF_BIT) != 0u;
+    bool asset = cut_is_asset(a);
+    float grow = asset ? 0.0 : u_leaf_radius;
+    if (leaf && !asset) {
+        float rl = sqrt(nd.r2) + u_leaf_radius;
+        nd.r2 = rl * rl;
+    }
     float r = s.radius + grow;
     if (!leaf) r -= grow;                                  // (the walk's own_r, rounding too)
     vec3 dv = s.center - p;
     float d2 = dot(dv, dv);
-    nd = cut_node(a, p, u_inv_cell_area);
-    if (leaf && !cut_is_asset(a)) {
-        float rl = sqrt(nd.r2) + u_leaf_radius;
-        nd.r2 = rl * rl;
-    }
-    if (leaf && d2 <= r * r) return (F.rings - 1u) << 8u | (F.sectors << 24u);   // inside
     float inv_d = inversesqrt(d2);
-    float om;
-    if (leaf) {
-        float sin_b = r * inv_d;
-        return lobe_rect(F, dv * inv_d, sin_b, sqrt(max(1.0 - sin_b * sin_b, 0.0)), om);
+    float sin_b, cos_b;
+    if (leaf) {                                            // as the walk's culls had it
+        sin_b = r * inv_d;
+        cos_b = sqrt(max(1.0 - sin_b * sin_b, 0.0));
+    } else {                                               // its own sphere, as its acceptance
+        float sin_o2 = min(r * r / d2, 1.0);
+        sin_b = sqrt(sin_o2);
+        cos_b = sqrt(1.0 - sin_o2);
     }
-    float sin_o2 = min(r * r / d2, 1.0);
-    return lobe_rect(F, dv * inv_d, sqrt(sin_o2), sqrt(1.0 - sin_o2), om);
+    float om;
+    uint rect = lobe_rect(F, dv * inv_d, sin_b, cos_b, om);
+    return (leaf && d2 <= r * r) ? (F.rings - 1u) << 8u | (F.sectors << 24u)   // inside it
+                                 : rect;
 }
 
 void main() {

@@ -141,10 +141,9 @@ void cut_write(uint receiver, uint k, uint key, uint node) {
 // diffuse 3.5 -> 2.7%, 4.6 -> 4.6%). The closed form of a sphere occluding the furnace
 // (tests/pbgi/test_asset_scene.py) still holds at M = 24 within its limits. r never grows
 // beyond the bounding radius, so surfel leaves stay their own discs.
-MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
-    BshSphere s = tnode_sphere(a);
-    BshCone cone = tnode_cone(a);
-    uint points = max(tnode_link(a).count_flags & BSH_TEX_COUNT_MASK, 1u);
+// cut_node_of: the same from the node's records already fetched (pbgi_lobe.glsl).
+MbNode cut_node_of(uint a, BshSphere s, BshCone cone, BshLink link, vec3 p, float inv_cell_area) {
+    uint points = max(link.count_flags & BSH_TEX_COUNT_MASK, 1u);
     MbNode nd;
     nd.dv = s.center - p;
     nd.d2 = dot(nd.dv, nd.dv);
@@ -158,6 +157,10 @@ MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
     nd.inv_area = inv_cell_area / float(points);
     nd.index = a;
     return nd;
+}
+
+MbNode cut_node(uint a, vec3 p, float inv_cell_area) {
+    return cut_node_of(a, tnode_sphere(a), tnode_cone(a), tnode_link(a), p, inv_cell_area);
 }
 
 // One rasteriser step: node nd against micro-buffer entry kk of a receiver with frame (T, B, N).

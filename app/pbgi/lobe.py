@@ -65,8 +65,8 @@ class LobeWalkTuning:
     loop's body on every iteration, so what only an accepted node needs costs it on every
     visit and every ray test unless it has a loop of its own; a GPU pays a branch only where
     it is taken, and the table would be spilled local memory ("The lobe walk's accepted nodes
-    in a table", README). With a table of 512 the list is rarely full, so a receiver's walk
-    seldom takes a second dispatch (its frame and ray table set up again)."""
+    in a table", README). The list of 512 halves the dispatches a receiver's walk takes (each
+    sets up its frame and ray table again); with the table, 1024 was no faster."""
     list_cap: int
     ray_table: bool
     accepted_table: bool = False

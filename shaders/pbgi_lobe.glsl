@@ -115,6 +115,17 @@ void lobe_write(uint receiver, uint k, uint key, uint node) {
 #endif
 }
 
+// Node a's ray-cast record from p: cut_node's, a room leaf's disc grown by u_leaf_radius (the
+// scan's surface, as the walk's culls had it; the asset's surfels are discs already).
+MbNode lobe_cast_node(uint a, BshSphere s, BshCone cone, BshLink link, vec3 p) {
+    MbNode nd = cut_node_of(a, s, cone, link, p, u_inv_cell_area);
+    if ((link.count_flags & BSH_TEX_LEAF_BIT) != 0u && !cut_is_asset(a)) {
+        float r = sqrt(nd.r2) + u_leaf_radius;
+        nd.r2 = r * r;
+    }
+    return nd;
+}
+
 // Accepted node ``a`` (a leaf: its sphere grown by u_leaf_radius) as seen from p: its rectangle
 // of micro-pixels (0xFFFFFFFF: outside the domain) and its ray-cast record. The same figures as
 // the walk's own (LOBE_ACCEPTED_TABLE 0), expression for expression; one lobe_rect for both kinds
@@ -122,14 +133,9 @@ void lobe_write(uint receiver, uint k, uint key, uint node) {
 uint accepted_rect(LobeFrame F, uint a, vec3 p, out MbNode nd) {
     BshSphere s = tnode_sphere(a);
     BshLink link = tnode_link(a);
-    nd = cut_node_of(a, s, tnode_cone(a), link, p, u_inv_cell_area);
+    nd = lobe_cast_node(a, s, tnode_cone(a), link, p);
     bool leaf = (link.count_flags & BSH_TEX_LEAF_BIT) != 0u;
-    bool asset = cut_is_asset(a);
-    float grow = asset ? 0.0 : u_leaf_radius;
-    if (leaf && !asset) {
-        float rl = sqrt(nd.r2) + u_leaf_radius;
-        nd.r2 = rl * rl;
-    }
+    float grow = cut_is_asset(a) ? 0.0 : u_leaf_radius;
     float r = s.radius + grow;
     if (!leaf) r -= grow;                                  // (the walk's own_r, rounding too)
     vec3 dv = s.center - p;
@@ -296,12 +302,8 @@ void main() {
             nd = MbNode(sph.xyz, dot(sph.xyz, sph.xyz), sph.w, cone.xyz, cone.w,
                         accepted_inv_area[k], cut_list_node[k]);
 #else
-            nd = cut_node(cut_list_node[k], p, u_inv_cell_area);
-            if ((tnode_link(nd.index).count_flags & BSH_TEX_LEAF_BIT) != 0u
-                    && !cut_is_asset(nd.index)) {
-                float r = sqrt(nd.r2) + u_leaf_radius;
-                nd.r2 = r * r;
-            }
+            uint a = cut_list_node[k];
+            nd = lobe_cast_node(a, tnode_sphere(a), tnode_cone(a), tnode_link(a), p);
 #endif
             rect = cut_list_rect[k];
             cells = lobe_rect_cells(rect);
